@@ -1,0 +1,48 @@
+#pragma once
+// Line-oriented reading of delimited text files (CSV, whitespace-separated) with line numbers, so
+// every parse error can name the file, the line and the field.
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "superdyna/core/error.h"
+#include "superdyna/core/time.h"
+
+namespace superdyna::io {
+
+enum class Delimiter { kComma, kWhitespace };
+
+/// One non-empty, non-comment line split into fields.
+struct TextRow {
+  int line = 0;                     ///< 1-based line number in the file.
+  std::string text;                 ///< The line without its line ending and outer blanks.
+  std::vector<std::string> fields;  ///< Owned copies: rows can be moved and erased freely.
+
+  InputLocation at(const std::filesystem::path& file, std::string_view field = {}) const {
+    return InputLocation{file, line, std::string(field)};
+  }
+};
+
+/// Reads every line of `file`; drops empty lines and lines starting with '#' (after leading
+/// blanks). Throws InputError when the file cannot be opened.
+std::vector<TextRow> readTextRows(const std::filesystem::path& file, Delimiter delimiter);
+
+/// Splits one line. Comma fields are trimmed of surrounding blanks; "a,,b" gives an empty field.
+std::vector<std::string_view> splitFields(std::string_view line, Delimiter delimiter);
+
+/// Strict parsers: the whole field must be a number. Throw InputError naming `where`.
+double parseFiniteDouble(std::string_view field, const InputLocation& where);
+TimeNs parseIntegerNs(std::string_view field, const InputLocation& where);
+TimeNs parseSecondsField(std::string_view field, const InputLocation& where);
+
+/// Throws unless `row` has at least `min_fields` (and, if max_fields > 0, at most max_fields).
+void requireFieldCount(const TextRow& row, const std::filesystem::path& file,
+                       std::size_t min_fields, std::size_t max_fields = 0);
+
+/// Throws unless t_ns is strictly greater than the previous timestamp of the same stream.
+void requireIncreasingTime(TimeNs previous_ns, TimeNs t_ns, bool has_previous,
+                           const InputLocation& where);
+
+}  // namespace superdyna::io

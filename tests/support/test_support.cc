@@ -1,0 +1,51 @@
+#include "support/test_support.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+namespace superdyna::test {
+
+namespace fs = std::filesystem;
+
+fs::path sharedDir() {
+  if (const char* env = std::getenv("SUPERDYNA_SHARED_DIR"); env != nullptr && *env != '\0') {
+    return fs::path(env);
+  }
+  return fs::path(SUPERDYNA_SHARED_DIR);
+}
+
+fs::path sharedPath(const std::string& relative) {
+  const fs::path p = sharedDir() / relative;
+  return fs::exists(p) ? fs::weakly_canonical(p) : fs::path{};
+}
+
+ScratchDir::ScratchDir(const std::string& name) {
+  static std::atomic<int> counter{0};
+  path_ = fs::temp_directory_path() / ("superdyna_test_" + name + "_" + std::to_string(::getpid()) +
+                                       "_" + std::to_string(counter++));
+  fs::remove_all(path_);
+  fs::create_directories(path_);
+}
+
+ScratchDir::~ScratchDir() {
+  std::error_code ignored;
+  fs::remove_all(path_, ignored);
+}
+
+std::string readFile(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+void writeFile(const fs::path& file, const std::string& content) {
+  std::ofstream out(file, std::ios::binary);
+  out << content;
+}
+
+}  // namespace superdyna::test

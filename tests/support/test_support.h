@@ -1,0 +1,44 @@
+#pragma once
+// Helpers shared by the tests: where ../shared lives, skipping when it is absent, scratch folders.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+namespace superdyna::test {
+
+/// The shared data folder ($SUPERDYNA_SHARED_DIR, else the one configured at build time).
+std::filesystem::path sharedDir();
+
+/// `sharedDir() / relative` if it exists, else an empty path.
+std::filesystem::path sharedPath(const std::string& relative);
+
+/// A fresh, empty folder for one test, removed by the destructor.
+class ScratchDir {
+ public:
+  explicit ScratchDir(const std::string& name);
+  ~ScratchDir();
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& child) const { return path_ / child; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+/// Reads a whole file into a string (empty when it cannot be read).
+std::string readFile(const std::filesystem::path& file);
+void writeFile(const std::filesystem::path& file, const std::string& content);
+
+}  // namespace superdyna::test
+
+/// Skips the current test with a message when a shared file or folder is absent.
+#define SUPERDYNA_REQUIRE_SHARED(var, relative)                                      \
+  const std::filesystem::path var = ::superdyna::test::sharedPath(relative);         \
+  if (var.empty()) {                                                                 \
+    GTEST_SKIP() << "shared data '" << (relative) << "' not found under "            \
+                 << ::superdyna::test::sharedDir() << " (set SUPERDYNA_SHARED_DIR)"; \
+  }
