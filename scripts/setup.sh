@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Installs the build dependencies (Debian bookworm packages) when any is missing, then configures
+# and builds SuperDynaSLAM into build/. Safe to run again: installed packages and an up-to-date
+# build are detected and skipped. Works as root or through sudo.
+#
+# Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default nproc),
+#              SUPERDYNA_WERROR=ON to turn warnings into errors (CI does).
+set -euo pipefail
+
+repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${BUILD_DIR:-"$repo_dir/build"}
+build_type=${BUILD_TYPE:-Release}
+jobs=${JOBS:-$(nproc)}
+
+packages=(
+  cmake g++ make pkg-config git
+  libeigen3-dev libopencv-dev libceres-dev libyaml-cpp-dev libcli11-dev
+  libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev libboost-math-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  clang-format python3 python3-numpy
+)
+
+missing_packages() {
+  local pkg
+  for pkg in "${packages[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed"; then
+      echo "$pkg"
+    fi
+  done
+}
+
+as_root() {
+  if [ "$(id -u)" -eq 0 ]; then
+    "$@"
+  elif command -v sudo >/dev/null 2>&1; then
+    sudo "$@"
+  else
+    echo "error: installing packages needs root or sudo: $*" >&2
+    exit 1
+  fi
+}
+
+install_dependencies() {
+  if ! command -v dpkg-query >/dev/null 2>&1; then
+    echo "warning: not a Debian-based system; install the equivalents of: ${packages[*]}" >&2
+    return
+  fi
+  local missing
+  missing=$(missing_packages | tr '\n' ' ')
+  if [ -z "${missing// /}" ]; then
+    echo "[setup] all ${#packages[@]} Debian packages present"
+    return
+  fi
+  echo "[setup] installing: $missing"
+  as_root apt-get update -q
+  # shellcheck disable=SC2086  # word splitting of the package list is intended
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $missing
+}
+
+configure_and_build() {
+  echo "[setup] configuring $build_dir ($build_type)"
+  cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" \
+    -DSUPERDYNA_WERROR="${SUPERDYNA_WERROR:-OFF}" >/dev/null
+  echo "[setup] building with $jobs jobs"
+  cmake --build "$build_dir" -j "$jobs"
+}
+
+install_dependencies
+configure_and_build
+echo "[setup] done: $build_dir/bin/superdyna"
