@@ -114,4 +114,33 @@ void requireIncreasingTime(TimeNs previous_ns, TimeNs t_ns, bool has_previous,
                                             t_ns, previous_ns));
 }
 
+Eigen::Matrix<double, 3, 4> parseRowMajor3x4(const TextRow& row, const std::filesystem::path& file,
+                                             std::size_t first) {
+  Eigen::Matrix<double, 3, 4> M;
+  for (int i = 0; i < 12; ++i) {
+    M(i / 4, i % 4) = parseFiniteDouble(row.fields[first + static_cast<std::size_t>(i)],
+                                        row.at(file, fmt::format("m{}{}", i / 4, i % 4)));
+  }
+  return M;
+}
+
+Eigen::Quaterniond checkedQuaternion(double w, double x, double y, double z,
+                                     const InputLocation& where) {
+  Eigen::Quaterniond q(w, x, y, z);
+  const double norm = q.norm();
+  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
+    throw InputError(where, fmt::format("quaternion norm is {:.6f}, expected 1", norm));
+  }
+  q.normalize();
+  return q;
+}
+
+void requireRotationMatrix(const Eigen::Matrix3d& R, const InputLocation& where) {
+  const double deviation = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (deviation > kRotationOrthonormalityTolerance || R.determinant() < 0.0) {
+    throw InputError(
+        where, fmt::format("rotation block is not orthonormal (|R^T R - I| = {:.2e})", deviation));
+  }
+}
+
 }  // namespace superdyna::io

@@ -17,8 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kQuaternionNormTolerance = 1e-2;
-constexpr double kRotationOrthonormalityTolerance = 1e-3;
 constexpr TimeNs kKittiDefaultPeriodNs = 100 * kNsPerMillisecond;
 
 bool startsWithNumber(const TextRow& row) {
@@ -38,17 +36,6 @@ std::vector<TextRow> dataRows(std::vector<TextRow> rows) {
     ++first;
   rows.erase(rows.begin(), rows.begin() + static_cast<std::ptrdiff_t>(first));
   return rows;
-}
-
-Eigen::Quaterniond checkedQuaternion(double w, double x, double y, double z,
-                                     const InputLocation& where) {
-  Eigen::Quaterniond q(w, x, y, z);
-  const double norm = q.norm();
-  if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
-    throw InputError(where, fmt::format("quaternion norm is {:.6f}, expected 1", norm));
-  }
-  q.normalize();
-  return q;
 }
 
 void requireIncreasing(const Trajectory& trajectory, const TextRow& row, const fs::path& file) {
@@ -121,18 +108,8 @@ Trajectory readEuroc(const fs::path& file) {
 }
 
 SE3d parseKittiPose(const TextRow& row, const fs::path& file) {
-  Eigen::Matrix<double, 3, 4> M;
-  for (int i = 0; i < 12; ++i) {
-    M(i / 4, i % 4) = parseFiniteDouble(row.fields[static_cast<std::size_t>(i)],
-                                        row.at(file, fmt::format("m{}{}", i / 4, i % 4)));
-  }
-  const Eigen::Matrix3d R = M.leftCols<3>();
-  const double deviation = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (deviation > kRotationOrthonormalityTolerance || R.determinant() < 0.0) {
-    throw InputError(
-        row.at(file, "rotation"),
-        fmt::format("rotation block is not orthonormal (|R^T R - I| = {:.2e})", deviation));
-  }
+  const Eigen::Matrix<double, 3, 4> M = parseRowMajor3x4(row, file);
+  requireRotationMatrix(M.leftCols<3>(), row.at(file, "rotation"));
   return SE3d::fromMatrix(M);
 }
 

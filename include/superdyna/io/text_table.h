@@ -2,6 +2,8 @@
 // Line-oriented reading of delimited text files (CSV, whitespace-separated) with line numbers, so
 // every parse error can name the file, the line and the field.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -44,5 +46,23 @@ void requireFieldCount(const TextRow& row, const std::filesystem::path& file,
 /// Throws unless t_ns is strictly greater than the previous timestamp of the same stream.
 void requireIncreasingTime(TimeNs previous_ns, TimeNs t_ns, bool has_previous,
                            const InputLocation& where);
+
+/// Parses 12 fields starting at `first` as a row-major 3x4 matrix (KITTI poses and projection
+/// matrices); fields are named "m00".."m23" in errors. The row must hold first + 12 fields.
+Eigen::Matrix<double, 3, 4> parseRowMajor3x4(const TextRow& row, const std::filesystem::path& file,
+                                             std::size_t first = 0);
+
+/// Validation of parsed rotations, shared by every reader so that all apply the same tolerances.
+inline constexpr double kQuaternionNormTolerance = 1e-2;
+inline constexpr double kRotationOrthonormalityTolerance = 1e-3;
+
+/// The quaternion (w, x, y, z), normalised; throws unless its norm is within
+/// kQuaternionNormTolerance of 1 (a larger error means a wrong column, not rounding).
+Eigen::Quaterniond checkedQuaternion(double w, double x, double y, double z,
+                                     const InputLocation& where);
+
+/// Throws unless R is a proper rotation: |R^T R - I| <= kRotationOrthonormalityTolerance in
+/// every element and det(R) > 0. Callers then re-orthonormalise (SE3d::fromMatrix).
+void requireRotationMatrix(const Eigen::Matrix3d& R, const InputLocation& where);
 
 }  // namespace superdyna::io

@@ -1,0 +1,117 @@
+#pragma once
+// Reader of the EuRoC MAV / ASL dataset layout:
+//
+//   mav0/cam0/{sensor.yaml, data.csv, data/<t_ns>.png}    left camera (required)
+//   mav0/cam1/...                                          right camera (optional: mono dataset)
+//   mav0/imu0/{sensor.yaml, data.csv}                      IMU (optional)
+//   mav0/state_groundtruth_estimate0/data.csv              ground truth of the body (optional)
+//
+// Everything is read and validated when the dataset is opened (images are only checked to exist);
+// bad input throws InputError naming the file, the line and the field. Oddities that do not stop
+// the dataset from being used (unpaired stereo frames, IMU gaps) are collected in warnings().
+// Every image the dataset serves (all cam0 frames, the cam1 images of stereo pairs) must exist.
+// cam1 rows without a cam0 frame at the same time are never served, so a missing image among them
+// is only reported: the shared V1_01 excerpt's cam1/data.csv lists 4 such rows without images.
+//
+// The streams cover different time ranges: on EuRoC the IMU and the ground truth run far longer
+// than an excerpt's images. Use imuBetween() and framesWithImuCoverage() to intersect them.
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "superdyna/core/geometry.h"
+#include "superdyna/core/time.h"
+#include "superdyna/core/trajectory.h"
+#include "superdyna/io/calibration.h"
+
+namespace superdyna::io {
+
+/// One IMU measurement, in the IMU frame.
+struct ImuSample {
+  TimeNs t_ns = 0;
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   ///< Angular velocity, rad/s.
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();  ///< Specific force, m/s^2.
+};
+
+/// One ground-truth state of the body frame.
+struct GroundTruthState {
+  TimeNs t_ns = 0;
+  SE3d T_w_b;                                     ///< Pose of the body in the world frame.
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Velocity in the world frame, m/s.
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias, rad/s.
+  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias, m/s^2.
+};
+
+class EurocDataset {
+ public:
+  /// Opens a sequence: `path` is the sequence folder containing mav0/, or mav0 itself.
+  static EurocDataset open(const std::filesystem::path& path);
+
+  /// The mav0 folder.
+  const std::filesystem::path& root() const { return root_; }
+  /// Whether cam1 exists (then stereoFrames() holds the synchronised pairs).
+  bool isStereo() const { return cam1_.has_value(); }
+  bool hasImu() const { return imu_calibration_.has_value(); }
+  bool hasGroundTruth() const { return !ground_truth_.empty(); }
+
+  const CameraCalibration& cam0Calibration() const { return cam0_; }
+  /// Empty for a mono dataset.
+  const std::optional<CameraCalibration>& cam1Calibration() const { return cam1_; }
+  /// Empty without imu0/.
+  const std::optional<ImuCalibration>& imuCalibration() const { return imu_calibration_; }
+
+  /// Every cam0 frame, in time order.
+  const std::vector<ImageRef>& monoFrames() const { return cam0_frames_; }
+  /// Frames whose timestamp is in both cam0 and cam1 (exact match), in time order; empty if mono.
+  const std::vector<StereoFrameRef>& stereoFrames() const { return stereo_frames_; }
+  /// Every IMU sample, in time order; empty without IMU.
+  const std::vector<ImuSample>& imu() const { return imu_; }
+  /// Every ground-truth state, in time order; empty without ground truth.
+  const std::vector<GroundTruthState>& groundTruth() const { return ground_truth_; }
+  /// False when the ground-truth file has only the pose columns: v_w, bg and ba are then zero.
+  bool groundTruthHasVelocityAndBiases() const { return ground_truth_full_state_; }
+
+  /// Time ranges of the streams (first and last sample); empty for an absent stream.
+  TimeRange cam0TimeRange() const;
+  std::optional<TimeRange> cam1TimeRange() const;
+  std::optional<TimeRange> imuTimeRange() const;
+  std::optional<TimeRange> groundTruthTimeRange() const;
+
+  /// The IMU samples with t0_ns <= t_ns <= t1_ns (a view into imu(); empty if t1_ns < t0_ns).
+  std::span<const ImuSample> imuBetween(TimeNs t0_ns, TimeNs t1_ns) const;
+  /// Whether the IMU stream covers t_ns (first sample <= t_ns <= last sample).
+  bool hasImuCoverage(TimeNs t_ns) const;
+  /// The stereo frames the IMU covers (those a visual-inertial pipeline can use).
+  std::vector<StereoFrameRef> framesWithImuCoverage() const;
+  /// The cam0 frames the IMU covers (for mono-inertial use).
+  std::vector<ImageRef> monoFramesWithImuCoverage() const;
+
+  /// The ground-truth poses T_w_b as a trajectory (body frame tracked).
+  Trajectory groundTruthTrajectory() const;
+  /// The ground-truth state closest in time to t_ns, if one lies within max_diff_ns.
+  std::optional<GroundTruthState> groundTruthNearest(TimeNs t_ns, TimeNs max_diff_ns) const;
+
+  /// Non-fatal findings of open(): unpaired stereo frames, IMU gaps. One sentence each.
+  const std::vector<std::string>& warnings() const { return warnings_; }
+
+ private:
+  EurocDataset() = default;
+
+  std::filesystem::path root_;
+  CameraCalibration cam0_;
+  std::optional<CameraCalibration> cam1_;
+  std::optional<ImuCalibration> imu_calibration_;
+  std::vector<ImageRef> cam0_frames_;
+  std::optional<TimeRange> cam1_range_;  ///< Of every row of cam1/data.csv, paired or not.
+  std::vector<StereoFrameRef> stereo_frames_;
+  std::vector<ImuSample> imu_;
+  std::vector<GroundTruthState> ground_truth_;
+  bool ground_truth_full_state_ = false;
+  std::vector<std::string> warnings_;
+};
+
+}  // namespace superdyna::io

@@ -1,0 +1,348 @@
+#include "superdyna/io/euroc_dataset.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <iterator>
+#include <utility>
+
+#include "superdyna/core/error.h"
+#include "superdyna/io/text_table.h"
+
+namespace superdyna::io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// IMU gaps longer than this many nominal periods are reported: a few dropped samples are common,
+/// longer gaps degrade preintegration and are worth knowing about.
+constexpr double kImuGapWarningPeriods = 5.0;
+
+/// One row of a camera's data.csv, with its line for error messages.
+struct ListedImage {
+  ImageRef ref;
+  int line = 0;
+};
+
+struct CameraList {
+  fs::path csv;
+  std::vector<ListedImage> images;
+};
+
+/// Frames of the two cameras matched by exact timestamp, and those left over on either side.
+struct StereoMatch {
+  std::vector<std::pair<const ListedImage*, const ListedImage*>> pairs;
+  std::vector<const ListedImage*> cam0_only;
+  std::vector<const ListedImage*> cam1_only;
+};
+
+/// Counts IMU gaps longer than the warning threshold and remembers the largest.
+struct ImuGaps {
+  int count = 0;
+  TimeNs largest_ns = 0;
+  int largest_line = 0;
+
+  void note(TimeNs dt_ns, TimeNs threshold_ns, int line) {
+    if (dt_ns <= threshold_ns) return;
+    ++count;
+    if (dt_ns > largest_ns) {
+      largest_ns = dt_ns;
+      largest_line = line;
+    }
+  }
+};
+
+struct GroundTruthRows {
+  std::vector<GroundTruthState> states;
+  bool full_state = false;
+};
+
+fs::path findMav0(const fs::path& path) {
+  if (!fs::is_directory(path))
+    throw InputError(InputLocation{path}, "dataset folder does not exist");
+  if (fs::is_directory(path / "mav0" / "cam0")) return path / "mav0";
+  if (fs::is_directory(path / "cam0")) return path;
+  throw InputError(InputLocation{path},
+                   "not a EuRoC sequence: found neither mav0/cam0/ nor cam0/ in this folder");
+}
+
+fs::path requireFile(const fs::path& file) {
+  if (!fs::is_regular_file(file)) throw InputError(InputLocation{file}, "file does not exist");
+  return file;
+}
+
+CameraList readCameraList(const fs::path& camera_dir) {
+  CameraList list;
+  list.csv = requireFile(camera_dir / "data.csv");
+  for (const TextRow& row : readTextRows(list.csv, Delimiter::kComma)) {
+    requireFieldCount(row, list.csv, 2, 2);
+    const TimeNs t_ns = parseIntegerNs(row.fields[0], row.at(list.csv, "timestamp"));
+    requireIncreasingTime(list.images.empty() ? 0 : list.images.back().ref.t_ns, t_ns,
+                          !list.images.empty(), row.at(list.csv, "timestamp"));
+    if (row.fields[1].empty()) throw InputError(row.at(list.csv, "filename"), "empty file name");
+    list.images.push_back({{t_ns, camera_dir / "data" / row.fields[1]}, row.line});
+  }
+  if (list.images.empty()) throw InputError(InputLocation{list.csv}, "no image rows found");
+  return list;
+}
+
+void requireImageExists(const ListedImage& image, const fs::path& csv) {
+  if (fs::is_regular_file(image.ref.path)) return;
+  throw InputError(InputLocation{csv, image.line, "filename"},
+                   fmt::format("image {} does not exist", image.ref.path.string()));
+}
+
+/// Merges the two time-sorted lists, pairing equal timestamps.
+StereoMatch matchByTimestamp(const CameraList& cam0, const CameraList& cam1) {
+  StereoMatch match;
+  auto left = cam0.images.begin();
+  auto right = cam1.images.begin();
+  while (left != cam0.images.end() || right != cam1.images.end()) {
+    if (right == cam1.images.end() ||
+        (left != cam0.images.end() && left->ref.t_ns < right->ref.t_ns)) {
+      match.cam0_only.push_back(&*left++);
+    } else if (left == cam0.images.end() || right->ref.t_ns < left->ref.t_ns) {
+      match.cam1_only.push_back(&*right++);
+    } else {
+      match.pairs.emplace_back(&*left++, &*right++);
+    }
+  }
+  return match;
+}
+
+/// "cam1/data.csv: 4 frames have no cam0 frame ..." for the unpaired frames of one camera.
+/// Unpaired cam1 images are never served, so a missing image among them is only mentioned.
+std::string unpairedWarning(const std::vector<const ListedImage*>& unpaired, const fs::path& csv,
+                            const char* other_camera, const char* consequence) {
+  const auto missing = std::count_if(unpaired.begin(), unpaired.end(), [](const ListedImage* i) {
+    return !fs::is_regular_file(i->ref.path);
+  });
+  return fmt::format(
+      "{}: {} frame(s) have no {} frame with the same timestamp (first at line {}, t_ns {}); {}{}",
+      csv.string(), unpaired.size(), other_camera, unpaired.front()->line,
+      unpaired.front()->ref.t_ns, consequence,
+      missing > 0 ? fmt::format(" ({} of their images do not exist)", missing) : "");
+}
+
+/// Every cam0 image is served by monoFrames(), so each one must exist.
+std::vector<ImageRef> servedFrames(const CameraList& cam0) {
+  std::vector<ImageRef> frames;
+  for (const ListedImage& image : cam0.images) {
+    requireImageExists(image, cam0.csv);
+    frames.push_back(image.ref);
+  }
+  return frames;
+}
+
+/// The stereo pairs (their cam1 images must exist); unpaired frames of either camera are reported.
+std::vector<StereoFrameRef> pairStereoFrames(const CameraList& cam0, const CameraList& cam1,
+                                             std::vector<std::string>& warnings) {
+  const StereoMatch match = matchByTimestamp(cam0, cam1);
+  std::vector<StereoFrameRef> frames;
+  for (const auto& [left, right] : match.pairs) {
+    requireImageExists(*right, cam1.csv);
+    frames.push_back({left->ref.t_ns, left->ref.path, right->ref.path});
+  }
+  if (!match.cam0_only.empty()) {
+    warnings.push_back(
+        unpairedWarning(match.cam0_only, cam0.csv, "cam1", "they are in monoFrames() only"));
+  }
+  if (!match.cam1_only.empty()) {
+    warnings.push_back(unpairedWarning(match.cam1_only, cam1.csv, "cam0", "they are not used"));
+  }
+  return frames;
+}
+
+std::vector<ImuSample> readImuCsv(const fs::path& csv, TimeNs nominal_period_ns,
+                                  std::vector<std::string>& warnings) {
+  static constexpr std::array<const char*, 6> kNames = {"gyro_x",  "gyro_y",  "gyro_z",
+                                                        "accel_x", "accel_y", "accel_z"};
+  const auto gap_threshold_ns =
+      static_cast<TimeNs>(kImuGapWarningPeriods * static_cast<double>(nominal_period_ns));
+  std::vector<ImuSample> samples;
+  ImuGaps gaps;
+  for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
+    requireFieldCount(row, csv, 7, 7);
+    ImuSample sample;
+    sample.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
+    for (std::size_t i = 0; i < kNames.size(); ++i) {
+      const double value = parseFiniteDouble(row.fields[i + 1], row.at(csv, kNames[i]));
+      (i < 3 ? sample.gyro : sample.accel)[static_cast<Eigen::Index>(i % 3)] = value;
+    }
+    if (!samples.empty()) {
+      requireIncreasingTime(samples.back().t_ns, sample.t_ns, true, row.at(csv, "timestamp"));
+      gaps.note(sample.t_ns - samples.back().t_ns, gap_threshold_ns, row.line);
+    }
+    samples.push_back(sample);
+  }
+  if (samples.empty()) throw InputError(InputLocation{csv}, "no IMU rows found");
+  if (gaps.count > 0) {
+    warnings.push_back(fmt::format(
+        "{}: {} gap(s) longer than {} nominal periods ({:.1f} ms); the largest, {:.1f} ms, ends at "
+        "line {}",
+        csv.string(), gaps.count, kImuGapWarningPeriods,
+        static_cast<double>(gap_threshold_ns) / 1e6, static_cast<double>(gaps.largest_ns) / 1e6,
+        gaps.largest_line));
+  }
+  return samples;
+}
+
+Eigen::Vector3d parseVector3(const TextRow& row, const fs::path& csv, std::size_t first,
+                             const std::array<const char*, 3>& names) {
+  Eigen::Vector3d v;
+  for (std::size_t i = 0; i < 3; ++i) {
+    v[static_cast<Eigen::Index>(i)] =
+        parseFiniteDouble(row.fields[first + i], row.at(csv, names[i]));
+  }
+  return v;
+}
+
+GroundTruthState parseGroundTruthRow(const TextRow& row, const fs::path& csv, bool full_state) {
+  GroundTruthState state;
+  state.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
+  const Eigen::Vector3d p = parseVector3(row, csv, 1, {"p_x", "p_y", "p_z"});
+  const double qw = parseFiniteDouble(row.fields[4], row.at(csv, "q_w"));
+  const Eigen::Vector3d q_xyz = parseVector3(row, csv, 5, {"q_x", "q_y", "q_z"});
+  const Eigen::Quaterniond q =
+      checkedQuaternion(qw, q_xyz.x(), q_xyz.y(), q_xyz.z(), row.at(csv, "quaternion"));
+  state.T_w_b = SE3d(q, p);
+  if (full_state) {
+    state.v_w = parseVector3(row, csv, 8, {"v_x", "v_y", "v_z"});
+    state.bg = parseVector3(row, csv, 11, {"bg_x", "bg_y", "bg_z"});
+    state.ba = parseVector3(row, csv, 14, {"ba_x", "ba_y", "ba_z"});
+  }
+  return state;
+}
+
+/// Ground truth: t, p(3), q_wxyz(4)[, v(3), b_w(3), b_a(3)]. The first row decides whether the
+/// file carries the full state (>= 17 columns) or only poses (8..16); every row must then have as
+/// many columns as the first, so a truncated row is an error rather than a silent pose-only row.
+GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
+  GroundTruthRows result;
+  std::size_t columns = 0;
+  for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
+    if (columns == 0) {
+      requireFieldCount(row, csv, 8);
+      columns = row.fields.size();
+      result.full_state = columns >= 17;
+    }
+    requireFieldCount(row, csv, columns, columns);
+    result.states.push_back(parseGroundTruthRow(row, csv, result.full_state));
+    if (result.states.size() > 1) {
+      requireIncreasingTime(result.states[result.states.size() - 2].t_ns, result.states.back().t_ns,
+                            true, row.at(csv, "timestamp"));
+    }
+  }
+  if (result.states.empty()) throw InputError(InputLocation{csv}, "no ground-truth rows found");
+  return result;
+}
+
+template <typename T>
+std::optional<TimeRange> rangeOf(const std::vector<T>& samples) {
+  if (samples.empty()) return std::nullopt;
+  return TimeRange{samples.front().t_ns, samples.back().t_ns};
+}
+
+}  // namespace
+
+EurocDataset EurocDataset::open(const fs::path& path) {
+  EurocDataset dataset;
+  dataset.root_ = findMav0(path);
+  const fs::path cam0_dir = dataset.root_ / "cam0";
+  dataset.cam0_ = readCameraCalibration(cam0_dir / "sensor.yaml");
+  const CameraList cam0 = readCameraList(cam0_dir);
+  dataset.cam0_frames_ = servedFrames(cam0);
+
+  const fs::path cam1_dir = dataset.root_ / "cam1";
+  if (fs::is_directory(cam1_dir)) {
+    dataset.cam1_ = readCameraCalibration(cam1_dir / "sensor.yaml");
+    const CameraList cam1 = readCameraList(cam1_dir);
+    dataset.cam1_range_ = TimeRange{cam1.images.front().ref.t_ns, cam1.images.back().ref.t_ns};
+    dataset.stereo_frames_ = pairStereoFrames(cam0, cam1, dataset.warnings_);
+  }
+
+  const fs::path imu_dir = dataset.root_ / "imu0";
+  if (fs::is_directory(imu_dir)) {
+    dataset.imu_calibration_ = readImuCalibration(imu_dir / "sensor.yaml");
+    dataset.imu_ = readImuCsv(requireFile(imu_dir / "data.csv"),
+                              dataset.imu_calibration_->periodNs(), dataset.warnings_);
+  }
+
+  const fs::path ground_truth_csv = dataset.root_ / "state_groundtruth_estimate0" / "data.csv";
+  if (fs::is_regular_file(ground_truth_csv)) {
+    GroundTruthRows rows = readGroundTruthCsv(ground_truth_csv);
+    dataset.ground_truth_ = std::move(rows.states);
+    dataset.ground_truth_full_state_ = rows.full_state;
+  }
+  return dataset;
+}
+
+TimeRange EurocDataset::cam0TimeRange() const {
+  return *rangeOf(cam0_frames_);
+}
+
+std::optional<TimeRange> EurocDataset::cam1TimeRange() const {
+  return cam1_range_;
+}
+
+std::optional<TimeRange> EurocDataset::imuTimeRange() const {
+  return rangeOf(imu_);
+}
+
+std::optional<TimeRange> EurocDataset::groundTruthTimeRange() const {
+  return rangeOf(ground_truth_);
+}
+
+std::span<const ImuSample> EurocDataset::imuBetween(TimeNs t0_ns, TimeNs t1_ns) const {
+  if (t1_ns < t0_ns) return {};
+  const auto by_time = [](const ImuSample& s, TimeNs t) { return s.t_ns < t; };
+  const auto first = std::lower_bound(imu_.begin(), imu_.end(), t0_ns, by_time);
+  const auto last = std::upper_bound(first, imu_.end(), t1_ns,
+                                     [](TimeNs t, const ImuSample& s) { return t < s.t_ns; });
+  return {first, last};
+}
+
+bool EurocDataset::hasImuCoverage(TimeNs t_ns) const {
+  return !imu_.empty() && imu_.front().t_ns <= t_ns && t_ns <= imu_.back().t_ns;
+}
+
+std::vector<StereoFrameRef> EurocDataset::framesWithImuCoverage() const {
+  std::vector<StereoFrameRef> covered;
+  std::copy_if(stereo_frames_.begin(), stereo_frames_.end(), std::back_inserter(covered),
+               [this](const StereoFrameRef& f) { return hasImuCoverage(f.t_ns); });
+  return covered;
+}
+
+std::vector<ImageRef> EurocDataset::monoFramesWithImuCoverage() const {
+  std::vector<ImageRef> covered;
+  std::copy_if(cam0_frames_.begin(), cam0_frames_.end(), std::back_inserter(covered),
+               [this](const ImageRef& f) { return hasImuCoverage(f.t_ns); });
+  return covered;
+}
+
+Trajectory EurocDataset::groundTruthTrajectory() const {
+  Trajectory trajectory;
+  trajectory.reserve(ground_truth_.size());
+  for (const GroundTruthState& state : ground_truth_)
+    trajectory.push_back({state.t_ns, state.T_w_b});
+  return trajectory;
+}
+
+std::optional<GroundTruthState> EurocDataset::groundTruthNearest(TimeNs t_ns,
+                                                                 TimeNs max_diff_ns) const {
+  if (ground_truth_.empty()) return std::nullopt;
+  auto nearest = std::lower_bound(ground_truth_.begin(), ground_truth_.end(), t_ns,
+                                  [](const GroundTruthState& s, TimeNs t) { return s.t_ns < t; });
+  // The nearest state is the first at or after t_ns, or the one just before it.
+  if (nearest == ground_truth_.end() || (nearest != ground_truth_.begin() &&
+                                         t_ns - std::prev(nearest)->t_ns < nearest->t_ns - t_ns)) {
+    nearest = std::prev(nearest);
+  }
+  if (std::abs(nearest->t_ns - t_ns) > max_diff_ns) return std::nullopt;
+  return *nearest;
+}
+
+}  // namespace superdyna::io
