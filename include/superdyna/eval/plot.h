@@ -1,0 +1,43 @@
+#pragma once
+// Top view (x-y plane) of the ground truth and aligned estimates, the figure every SLAM paper
+// shows. Written as SVG (vector, for papers) or PNG (OpenCV), chosen by the file extension.
+// Axes are in metres with equal aspect, so shapes and drift are not distorted.
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "superdyna/core/trajectory.h"
+#include "superdyna/eval/evaluate.h"
+
+namespace superdyna::eval {
+
+/// A named polyline of positions in metres (only x and y are drawn).
+struct PlotSeries {
+  std::string label;
+  std::vector<Eigen::Vector3d> positions;
+};
+
+/// The positions of `trajectory`.
+PlotSeries toPlotSeries(const Trajectory& trajectory, const std::string& label);
+/// The aligned estimate positions of an evaluation (in the ground-truth frame).
+PlotSeries alignedEstimateSeries(const EvaluationResult& result, const std::string& label);
+
+struct PlotOptions {
+  int width = 1000;  ///< Image width in pixels (SVG: user units), >= 200.
+  int height = 800;  ///< Image height in pixels, >= 200.
+  std::string title = "Top view (x-y)";
+
+  /// Throws OptionError for sizes below 200 or above 20000 pixels.
+  void validate() const;
+};
+
+/// Draws the ground truth (dark grey) and every estimate (distinct colours) with a legend and
+/// metre ticks. The extension of `file` selects the format: ".svg" or ".png" (case-insensitive);
+/// anything else throws OptionError. Throws InputError if there is nothing to draw or the file
+/// cannot be written.
+void writeTopViewPlot(const std::filesystem::path& file, const PlotSeries& ground_truth,
+                      const std::vector<PlotSeries>& estimates, const PlotOptions& options = {});
+
+}  // namespace superdyna::eval

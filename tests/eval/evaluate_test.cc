@@ -1,0 +1,165 @@
+#include "superdyna/eval/evaluate.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "eval_test_data.h"
+#include "superdyna/core/error.h"
+#include "superdyna/eval/multi_run.h"
+#include "support/test_support.h"
+
+namespace superdyna::eval {
+namespace {
+
+/// Runs `fn` and expects an exception of type E whose message contains every fragment.
+template <typename E, typename Fn>
+void expectError(Fn fn, std::initializer_list<std::string> fragments) {
+  try {
+    fn();
+    ADD_FAILURE() << "expected an exception";
+  } catch (const E& e) {
+    for (const auto& fragment : fragments) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
+          << "message '" << e.what() << "' lacks '" << fragment << "'";
+    }
+  }
+}
+
+Trajectory shiftedInTime(const Trajectory& trajectory, TimeNs shift_ns) {
+  Trajectory out = trajectory;
+  for (StampedPose& pose : out)
+    pose.t_ns += shift_ns;
+  return out;
+}
+
+TEST(EvaluateTest, IdenticalTrajectoryHasZeroError) {
+  SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
+  const Trajectory gt = testdata::readSubsampled(file, 10);
+  const EvaluationResult result = evaluate(gt, gt, EvaluationOptions{});
+  EXPECT_EQ(result.pairs, gt.size());
+  EXPECT_EQ(result.gt_poses, gt.size());
+  EXPECT_EQ(result.est_poses, gt.size());
+  EXPECT_EQ(result.poses.size(), gt.size());
+  EXPECT_LT(result.ate_trans.max, 1e-9);
+  EXPECT_LT(result.ate_rot.max, 1e-6);
+  EXPECT_LT(result.rpe_trans.max, 1e-9);
+  EXPECT_DOUBLE_EQ(result.scale(), 1.0);
+  EXPECT_GT(result.rpe_trans.count, gt.size() / 2);
+}
+
+TEST(EvaluateTest, Sim3RecoversScaleAndRpeUsesIt) {
+  SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
+  const Trajectory gt = testdata::readSubsampled(file, 10);
+  std::mt19937 rng(8);
+  const Sim3d T = testdata::randomSim3(rng, false);
+  const Trajectory est = testdata::transformed(T.inverse(), gt);  // a monocular run: unknown scale
+  EvaluationOptions options;
+  options.align = AlignmentMode::kSim3;
+  const EvaluationResult result = evaluate(gt, est, options);
+  EXPECT_NEAR(result.scale() / T.s, 1.0, 1e-9);
+  EXPECT_LT(result.ate_trans.rmse, 1e-8);
+  EXPECT_LT(result.rpe_trans.rmse, 1e-8);  // with the scale applied the motion is exact
+
+  options.align = AlignmentMode::kSE3;
+  EXPECT_GT(evaluate(gt, est, options).rpe_trans.rmse, 1e-3);  // scale left wrong
+}
+
+TEST(EvaluateTest, OffsetRepairsAShiftedClock) {
+  SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
+  const Trajectory gt = testdata::readSubsampled(file, 10);
+  const TimeNs shift_ns = 300 * kNsPerMillisecond;
+  const Trajectory est = shiftedInTime(gt, shift_ns);
+  EvaluationOptions options;
+  options.association.offset_ns = -shift_ns;
+  const EvaluationResult result = evaluate(gt, est, options);
+  EXPECT_EQ(result.pairs, gt.size());
+  EXPECT_LT(result.ate_trans.max, 1e-9);
+  EXPECT_EQ(result.poses.front().t_ns, gt.front().t_ns);  // reported on the ground-truth clock
+}
+
+TEST(EvaluateTest, TooFewAssociationsExplainsWhy) {
+  Trajectory gt, est;
+  for (int i = 0; i < 10; ++i) {
+    const SE3d pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(i, i * i, 0));
+    gt.push_back({(100 + i) * kNsPerSecond, pose});
+    est.push_back({(200 + i) * kNsPerSecond, pose});
+  }
+  EvaluationOptions options;
+  expectError<InputError>(
+      [&] { evaluate(gt, est, options); },
+      {"only 0 pose pairs", "10 poses from 100.000 s to 109.000 s",
+       "10 poses from 200.000 s to 209.000 s", "--max-diff (now 10 ms)", "--offset (now 0 ms)"});
+  expectError<InputError>([&] { evaluate(gt, {}, options); }, {"Estimate: no poses"});
+  options.association.offset_ns = -100 * kNsPerSecond;
+  EXPECT_EQ(evaluate(gt, est, options).pairs, 10u);
+}
+
+TEST(EvaluateTest, ValidateNamesTheOption) {
+  EvaluationOptions options;
+  options.association.max_diff_ns = -5;
+  expectError<OptionError>([&] { options.validate(); }, {"max_diff_ns"});
+  options = {};
+  options.rpe.delta = 0.0;
+  expectError<OptionError>([&] { options.validate(); }, {"delta"});
+  options = {};
+  options.align_first_n = 2;
+  expectError<OptionError>([&] { options.validate(); }, {"align_first_n"});
+  options.align = AlignmentMode::kNone;
+  EXPECT_NO_THROW(options.validate());
+  options.align_first_n = -1;  // all poses
+  EXPECT_NO_THROW(options.validate());
+}
+
+TEST(EvaluateTest, StraightLineCannotBeAlignedButCanBeMeasuredUnaligned) {
+  Trajectory line;
+  for (int i = 0; i < 50; ++i) {
+    line.push_back({i * 50 * kNsPerMillisecond,
+                    SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.1 * i, 0, 0))});
+  }
+  expectError<InputError>([&] { evaluate(line, line, EvaluationOptions{}); }, {"one line"});
+  EvaluationOptions unaligned;
+  unaligned.align = AlignmentMode::kNone;
+  EXPECT_LT(evaluate(line, line, unaligned).ate_trans.max, 1e-12);
+}
+
+TEST(EvaluateTest, MultiRunSummaryOverPerturbedRuns) {
+  SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
+  const Trajectory gt = testdata::readSubsampled(file, 20);
+  std::vector<Trajectory> runs;
+  for (std::uint32_t seed = 1; seed <= 5; ++seed) {
+    runs.push_back(testdata::perturbed(gt, 0.01 * seed, 0.002, seed));
+  }
+  const MultiRunResult multi = evaluateRuns(gt, runs, EvaluationOptions{});
+  ASSERT_EQ(multi.runs.size(), 5u);
+  EXPECT_EQ(multi.runs[2].name, "run 3");
+  std::vector<double> rmse;
+  double mean = 0.0;
+  for (const NamedRun& run : multi.runs) {
+    rmse.push_back(run.result.ate_trans.rmse);
+    mean += run.result.ate_trans.rmse / 5.0;
+  }
+  double squares = 0.0;
+  for (double v : rmse)
+    squares += (v - mean) * (v - mean);
+  const double s = std::sqrt(squares / 4.0);
+  EXPECT_NEAR(multi.ate_rmse.mean, mean, 1e-15);
+  EXPECT_DOUBLE_EQ(multi.ate_rmse.median, rmse[2]);  // noise grows with the seed
+  EXPECT_NEAR(multi.ate_rmse.std, s, 1e-15);
+  EXPECT_NEAR(multi.ate_rmse.ci95_halfwidth, 2.7764451051977987 * s / std::sqrt(5.0), 1e-15);
+
+  const MultiRunResult single = evaluateRuns(gt, {runs[0]}, EvaluationOptions{}, {"only"});
+  EXPECT_EQ(single.runs[0].name, "only");
+  EXPECT_TRUE(std::isnan(single.ate_rmse.ci95_halfwidth));
+  EXPECT_THROW(evaluateRuns(gt, runs, EvaluationOptions{}, {"a", "b"}), OptionError);
+  EXPECT_THROW(summarizeRuns({}), InputError);
+  expectError<InputError>(
+      [&] {
+        evaluateRuns(gt, {runs[0], {}}, EvaluationOptions{});
+      },
+      {"run 2:"});
+}
+
+}  // namespace
+}  // namespace superdyna::eval
