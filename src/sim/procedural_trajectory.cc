@@ -72,7 +72,7 @@ Trajectory simulateEstimate(const Trajectory& truth, const EstimateErrorOptions&
   options.validate();
   std::mt19937_64 rng(options.seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
-  const auto gaussVector = [&](double sigma) {
+  const auto gaussVector = [&](double sigma) -> Eigen::Vector3d {
     const double x = gauss(rng), y = gauss(rng), z = gauss(rng);
     return Eigen::Vector3d(x, y, z) * sigma;
   };

@@ -1,0 +1,190 @@
+#include "commands/eval_command.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "commands/output_files.h"
+#include "superdyna/core/error.h"
+#include "superdyna/eval/evaluate.h"
+#include "superdyna/eval/multi_run.h"
+#include "superdyna/eval/plot.h"
+#include "superdyna/eval/report_json.h"
+#include "superdyna/eval/report_table.h"
+#include "superdyna/io/trajectory_io.h"
+
+namespace superdyna::apps {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct EvalArguments {
+  fs::path gt;
+  std::vector<fs::path> estimates;
+  std::string gt_format = "auto";
+  std::string est_format = "auto";
+  std::optional<fs::path> gt_times;
+  std::optional<fs::path> est_times;
+  std::optional<int> gt_segment;
+  std::string align = "se3";
+  int align_first = 0;
+  double max_diff_s = 0.01;
+  double offset_s = 0.0;
+  double rpe_delta = 1.0;
+  std::string rpe_unit = "m";
+  std::optional<fs::path> json;
+  std::optional<fs::path> plot;
+};
+
+class EvalCommand : public Command {
+ public:
+  explicit EvalCommand(CLI::App& app) {
+    sub_ = app.add_subcommand("eval",
+                              "Absolute and relative trajectory error (ATE, RPE) of one or "
+                              "more estimates against ground truth");
+    sub_->add_option("--gt", args_.gt, "Ground-truth trajectory (TUM, EuRoC CSV or KITTI)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    sub_->add_option("--est", args_.estimates,
+                     "Estimated trajectory; repeat for several runs of one sequence (N-run "
+                     "statistics: median, mean ± 95% CI)")
+        ->required()
+        ->check(CLI::ExistingFile);
+    sub_->add_option("--gt-format", args_.gt_format, "Format of --gt")
+        ->check(CLI::IsMember({"auto", "tum", "euroc", "kitti"}))
+        ->capture_default_str();
+    sub_->add_option("--est-format", args_.est_format, "Format of every --est")
+        ->check(CLI::IsMember({"auto", "tum", "euroc", "kitti"}))
+        ->capture_default_str();
+    sub_->add_option("--gt-times", args_.gt_times,
+                     "KITTI times file for --gt (default: 10 Hz from 0 s)")
+        ->check(CLI::ExistingFile);
+    sub_->add_option("--est-times", args_.est_times, "KITTI times file for every --est")
+        ->check(CLI::ExistingFile);
+    sub_->add_option("--gt-segment", args_.gt_segment,
+                     "Use only the 'seq: N' block of a multi-recording TUM file (OpenLORIS)");
+    sub_->add_option("--align", args_.align,
+                     "Alignment before ATE: none, se3 (rigid) or sim3 (with scale, for mono)")
+        ->check(CLI::IsMember({"none", "se3", "sim3"}))
+        ->capture_default_str();
+    sub_->add_option("--align-first", args_.align_first,
+                     "Align on the first N associated poses only (0 = all)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    sub_->add_option("--max-diff", args_.max_diff_s,
+                     "Largest time difference of an associated pose pair [s]")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    sub_->add_option("--offset", args_.offset_s, "Added to the estimate's timestamps [s]")
+        ->capture_default_str();
+    sub_->add_option("--rpe-delta", args_.rpe_delta,
+                     "RPE pair separation: metres of ground-truth path, or frames")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    sub_->add_option("--rpe-unit", args_.rpe_unit,
+                     "Unit of --rpe-delta: m (errors in m/m and deg/m) or frames (m and deg)")
+        ->check(CLI::IsMember({"m", "frames"}))
+        ->capture_default_str();
+    sub_->add_option("--json", args_.json, "Write the results as JSON to this file");
+    sub_->add_option("--plot", args_.plot,
+                     "Write a top-view plot (ground truth and aligned estimates), .svg or .png");
+    sub_->footer(
+        "Formats are detected from the content unless given. TUM: 't tx ty tz qx qy qz qw' (s); "
+        "EuRoC: 't_ns,px,py,pz,qw,qx,qy,qz,...'; KITTI: 12 numbers a line (3x4 pose).\n"
+        "Exit codes: 0 ok, 1 usage error, 2 bad input or options.");
+  }
+
+  CLI::App* subcommand() const override { return sub_; }
+
+  int run() override {
+    std::vector<fs::path> inputs = args_.estimates;
+    inputs.push_back(args_.gt);
+    if (args_.json) requireDistinctOutput(*args_.json, inputs, "--json");
+    if (args_.plot) requireDistinctOutput(*args_.plot, inputs, "--plot");
+
+    const eval::EvaluationOptions options = evaluationOptions();
+    options.validate();
+    const Trajectory gt = readGroundTruth();
+    std::vector<Trajectory> estimates;
+    std::vector<std::string> names;
+    for (const fs::path& file : args_.estimates) {
+      estimates.push_back(readEstimate(file));
+      names.push_back(file.filename().string());
+    }
+    if (estimates.size() == 1) {
+      reportSingle(gt, eval::evaluate(gt, estimates.front(), options), names.front());
+    } else {
+      reportMultiple(gt, eval::evaluateRuns(gt, estimates, options, names));
+    }
+    return 0;
+  }
+
+ private:
+  eval::EvaluationOptions evaluationOptions() const {
+    eval::EvaluationOptions options;
+    options.align = eval::parseAlignmentMode(args_.align);
+    options.align_first_n = args_.align_first;
+    options.association.max_diff_ns = secondsToNs(args_.max_diff_s);
+    options.association.offset_ns = secondsToNs(args_.offset_s);
+    options.rpe.delta = args_.rpe_delta;
+    options.rpe.unit =
+        args_.rpe_unit == "frames" ? eval::DeltaUnit::kFrames : eval::DeltaUnit::kMeters;
+    return options;
+  }
+
+  Trajectory readGroundTruth() const {
+    io::TrajectoryReadOptions read;
+    read.format = io::parseTrajectoryFormat(args_.gt_format);
+    read.kitti_times = args_.gt_times;
+    read.segment = args_.gt_segment;
+    return io::readTrajectory(args_.gt, read);
+  }
+
+  Trajectory readEstimate(const fs::path& file) const {
+    io::TrajectoryReadOptions read;
+    read.format = io::parseTrajectoryFormat(args_.est_format);
+    read.kitti_times = args_.est_times;
+    return io::readTrajectory(file, read);
+  }
+
+  void reportSingle(const Trajectory& gt, const eval::EvaluationResult& result,
+                    const std::string& name) const {
+    fmt::print("{}", eval::formatTable(result));
+    if (args_.json) writeJson(*args_.json, eval::toJson(result));
+    if (args_.plot) {
+      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"),
+                             {eval::alignedEstimateSeries(result, name)});
+      spdlog::info("plot written to {}", args_.plot->string());
+    }
+  }
+
+  void reportMultiple(const Trajectory& gt, const eval::MultiRunResult& runs) const {
+    fmt::print("{}", eval::formatTable(runs));
+    if (args_.json) writeJson(*args_.json, eval::toJson(runs));
+    if (args_.plot) {
+      std::vector<eval::PlotSeries> series;
+      for (const auto& run : runs.runs) {
+        series.push_back(eval::alignedEstimateSeries(run.result, run.name));
+      }
+      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"), series);
+      spdlog::info("plot written to {}", args_.plot->string());
+    }
+  }
+
+  CLI::App* sub_ = nullptr;
+  EvalArguments args_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeEvalCommand(CLI::App& app) {
+  return std::make_unique<EvalCommand>(app);
+}
+
+}  // namespace superdyna::apps

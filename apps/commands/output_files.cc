@@ -1,0 +1,34 @@
+#include "commands/output_files.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::apps {
+
+namespace fs = std::filesystem;
+
+void requireDistinctOutput(const fs::path& output, const std::vector<fs::path>& inputs,
+                           const std::string& option) {
+  if (!fs::exists(output)) return;
+  for (const fs::path& input : inputs) {
+    if (fs::exists(input) && fs::equivalent(output, input)) {
+      throw OptionError(
+          option, fmt::format("'{}' is an input file; refusing to overwrite it", output.string()));
+    }
+  }
+}
+
+void writeJson(const fs::path& file, const nlohmann::json& json) {
+  if (file.has_parent_path()) fs::create_directories(file.parent_path());
+  std::ofstream out(file);
+  if (!out) throw InputError(InputLocation(file), "cannot open file for writing");
+  out << json.dump(2) << '\n';
+  if (!out) throw InputError(InputLocation(file), "write failed");
+  spdlog::info("results written to {}", file.string());
+}
+
+}  // namespace superdyna::apps

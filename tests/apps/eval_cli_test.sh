@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# End-to-end checks of `superdyna eval` and `superdyna demo`:
+#  1. ATE / RPE from the CLI equal an independent numpy computation (scripts/reference_eval.py)
+#     to 1e-6 relative, for SE(3) and Sim(3) alignment, on a generated flight and (when
+#     ../shared is present) on a real EuRoC ground truth with a simulated drifting estimate;
+#  2. bad input stops with exit code 2 and a message naming the file and line;
+#  3. an output path equal to an input is refused and the input left intact.
+# Usage: eval_cli_test.sh SUPERDYNA PYTHON REPO_DIR SHARED_DIR
+set -euo pipefail
+superdyna=$1 python=$2 repo=$3 shared=$4
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+keys=(pairs scale ate_rmse ate_mean ate_median ate_std ate_min ate_max rpe_trans rpe_trans_mean
+      rpe_rot rpe_rot_mean rpe_pairs)
+
+compare_with_reference() {  # folder with groundtruth.txt and estimate.txt
+  local dir=$1 align
+  for align in se3 sim3; do
+    "$superdyna" eval --gt "$dir/groundtruth.txt" --est "$dir/estimate.txt" --align "$align" \
+      --json "$dir/cli_$align.json" >/dev/null
+    "$python" "$repo/scripts/reference_eval.py" --gt "$dir/groundtruth.txt" \
+      --est "$dir/estimate.txt" --align "$align" >"$dir/ref_$align.json"
+    echo "-- $dir, $align"
+    "$python" "$repo/tests/apps/compare_json.py" "$dir/cli_$align.json" "$dir/ref_$align.json" \
+      "${keys[@]}" --rtol 1e-6
+  done
+}
+
+expect_failure() {  # expected-message-fragment command...
+  local fragment=$1 message code
+  shift
+  set +e
+  message=$("$@" 2>&1)
+  code=$?
+  set -e
+  echo "$message"
+  [ "$code" -eq 2 ] || { echo "expected exit code 2, got $code"; exit 1; }
+  grep -qF "$fragment" <<<"$message" || { echo "message lacks '$fragment'"; exit 1; }
+}
+
+"$superdyna" demo --out "$work/generated" --scale 1.05 >/dev/null
+compare_with_reference "$work/generated"
+
+euroc_gt="$shared/data/trajectories/euroc/V1_01_easy.txt"
+if [ -f "$euroc_gt" ]; then
+  "$superdyna" demo --out "$work/euroc" --gt "$euroc_gt" --scale 0.93 --seed 7 >/dev/null
+  compare_with_reference "$work/euroc"
+else
+  echo "skipping the real-trajectory comparison: $euroc_gt not found"
+fi
+
+# Bad input: a NaN in line 3 of the estimate.
+sed '3s/^\([^ ]*\) [^ ]*/\1 nan/' "$work/generated/estimate.txt" >"$work/bad.txt"
+expect_failure "bad.txt:3 [tx]: 'nan' is not finite" \
+  "$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/bad.txt"
+
+# Never overwrite an input.
+cp "$work/generated/estimate.txt" "$work/keep.txt"
+expect_failure "is an input file; refusing to overwrite it" \
+  "$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/keep.txt" \
+  --json "$work/keep.txt"
+cmp -s "$work/keep.txt" "$work/generated/estimate.txt" || { echo "input was modified"; exit 1; }
+echo "eval CLI checks passed"
