@@ -1,0 +1,87 @@
+#pragma once
+// Writes one synthetic stereo + IMU sequence in the EuRoC ASL layout, readable by
+// io::EurocDataset and by other EuRoC tools:
+//
+//   mav0/cam{0,1}/{sensor.yaml, data.csv, data/<t_ns>.png}   752x480 gray images, 20 Hz
+//   mav0/cam{0,1}/mask/<t_ns>.png                            16-bit instance ids (0 = background)
+//   mav0/cam{0,1}/segmentation/<t_ns>.png                    optional VIODE-like colour labels
+//   mav0/imu0/{sensor.yaml, data.csv}                        200 Hz gyro + accel
+//   mav0/state_groundtruth_estimate0/{sensor.yaml, data.csv} body pose, velocity, true biases
+//   mav0/instances.csv                                       id -> class, moving?, lifetime
+//   mav0/instance_states.csv                                 per frame: id, moving, pixel counts
+//   mav0/segmentation_colors.csv                             id -> r,g,b (with segmentation)
+//   mav0/landmarks.csv                                       ground-truth 3D points on surfaces
+//   simulation.yaml                                          the effective options and summary
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "superdyna/core/camera_model.h"
+#include "superdyna/sim/imu_simulator.h"
+#include "superdyna/sim/motion_source.h"
+#include "superdyna/sim/world_builder.h"
+
+namespace superdyna::sim {
+
+/// The simulated stereo rig: EuRoC-like intrinsics and camera-IMU extrinsics.
+struct RigOptions {
+  int width = 752;
+  int height = 480;
+  double fx = 458.654, fy = 457.296, cx = 367.215, cy = 248.375;  ///< EuRoC cam0 [px].
+  bool distortion = false;  ///< Apply EuRoC cam0's radial-tangential distortion.
+  double baseline_m = 0.11;
+  double camera_rate_hz = 20.0;
+
+  CameraModel cameraModel() const;
+  /// Camera poses in the body frame: EuRoC cam0's T_BS; cam1 shifted by the baseline along
+  /// cam0's x axis, same orientation.
+  SE3d T_b_c0() const;
+  SE3d T_b_c1() const;
+  void validate() const;
+};
+
+struct SimulationOptions {
+  std::filesystem::path output_dir;
+  bool overwrite = false;  ///< Allow writing into a non-empty output folder.
+  MotionSourceOptions motion;
+  WorldOptions world;
+  std::optional<std::filesystem::path> texture_dir;  ///< Photos to texture the world with.
+  RigOptions rig;
+  ImuNoiseOptions imu;
+  bool noise = true;                    ///< IMU noise and bias walk, image noise.
+  double pixel_noise_sigma = 2.0;       ///< Image noise std when noise is on [gray levels].
+  double illumination_change = 0.0;     ///< Relative brightness swing over the sequence, [0, 0.9].
+  double motion_blur_exposure_s = 0.0;  ///< Exposure time for motion blur (0 = none) [s].
+  int motion_blur_samples = 5;
+  bool semantic_color = false;  ///< Also write VIODE-like colour segmentation images.
+  int landmark_count = 2000;    ///< Ground-truth landmarks to write (0 = none).
+  double knot_spacing_s = 0.1;  ///< Spline knot spacing fitted to the motion [s].
+  std::uint64_t seed = 1;       ///< Seeds the world, agents, IMU noise and image noise.
+
+  void validate() const;
+};
+
+struct SimulationSummary {
+  int frames = 0;
+  std::size_t imu_samples = 0;
+  int static_agents = 0;
+  int moving_agents = 0;
+  double mean_moving_in_view = 0.0;  ///< Moving agents with >= 50 pixels in cam0, per frame.
+  double max_moving_in_view = 0.0;
+  double mean_agent_coverage = 0.0;  ///< Fraction of cam0 pixels on agents, per frame.
+  double path_length_m = 0.0;
+  double seconds = 0.0;  ///< Wall-clock time of the generation.
+};
+
+/// Called after each frame with (frames done, frames total).
+using ProgressCallback = std::function<void(int done, int total)>;
+
+/// Generates and writes the sequence. Throws OptionError / InputError with context (e.g. the
+/// output folder is not empty and overwrite is off, the trajectory is too short).
+SimulationSummary generateSequence(const SimulationOptions& options,
+                                   const ProgressCallback& progress = {});
+
+}  // namespace superdyna::sim

@@ -1,0 +1,510 @@
+#include "superdyna/sim/sequence_generator.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "superdyna/core/error.h"
+#include "superdyna/sim/renderer.h"
+#include "superdyna/sim/se3_spline.h"
+
+namespace superdyna::sim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Agents with at least this many pixels count as "in view".
+constexpr int kInViewPixels = 50;
+/// Period of the illumination swing [s].
+constexpr double kIlluminationPeriodS = 20.0;
+
+// ---------------------------------------------------------------- output folder and files
+
+void prepareOutputFolder(const fs::path& dir, bool overwrite) {
+  if (fs::exists(dir) && !fs::is_directory(dir)) {
+    throw InputError(InputLocation(dir), "exists and is not a folder");
+  }
+  if (fs::exists(dir) && !fs::is_empty(dir) && !overwrite) {
+    throw InputError(InputLocation(dir),
+                     "output folder is not empty; choose another or pass --overwrite");
+  }
+  for (const char* sub : {"mav0/cam0/data", "mav0/cam1/data", "mav0/cam0/mask", "mav0/cam1/mask",
+                          "mav0/imu0", "mav0/state_groundtruth_estimate0"}) {
+    fs::create_directories(dir / sub);
+  }
+}
+
+std::ofstream openForWriting(const fs::path& file) {
+  std::ofstream out(file);
+  if (!out) throw InputError(InputLocation(file), "cannot open file for writing");
+  out.precision(17);
+  return out;
+}
+
+void writeImage(const fs::path& file, const cv::Mat& image) {
+  // Fast PNG compression: the sequence has thousands of images and PNG is lossless anyway.
+  if (!cv::imwrite(file.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1})) {
+    throw InputError(InputLocation(file), "cannot write image");
+  }
+}
+
+std::string matrixRows(const Eigen::Matrix4d& M) {
+  std::string rows;
+  for (int r = 0; r < 4; ++r) {
+    rows += fmt::format("{}{:.12g}, {:.12g}, {:.12g}, {:.12g}", r == 0 ? "" : ",\n         ",
+                        M(r, 0), M(r, 1), M(r, 2), M(r, 3));
+  }
+  return rows;
+}
+
+std::string sensorHeader(const std::string& type, const std::string& comment, const SE3d& T_b_s) {
+  return fmt::format(
+      "%YAML:1.0\nsensor_type: {}\ncomment: {}\n\n# Sensor extrinsics wrt. the body-frame.\n"
+      "T_BS:\n  cols: 4\n  rows: 4\n  data: [{}]\n",
+      type, comment, matrixRows(T_b_s.matrix()));
+}
+
+void writeCameraYaml(const fs::path& file, const std::string& name, const RigOptions& rig,
+                     const SE3d& T_b_c) {
+  const CameraModel camera = rig.cameraModel();
+  // With no distortion, zero radial-tangential coefficients: every EuRoC reader accepts them.
+  std::vector<double> k = camera.coefficients();
+  k.resize(4, 0.0);
+  auto out = openForWriting(file);
+  out << sensorHeader("camera", "SuperDynaSLAM simulated " + name, T_b_c)
+      << fmt::format(
+             "\n# Camera specific definitions.\nrate_hz: {}\nresolution: [{}, {}]\n"
+             "camera_model: pinhole\nintrinsics: [{}, {}, {}, {}] #fu, fv, cu, cv\n"
+             "distortion_model: radial-tangential\ndistortion_coefficients: [{}, {}, {}, {}]\n",
+             rig.camera_rate_hz, rig.width, rig.height, rig.fx, rig.fy, rig.cx, rig.cy, k[0], k[1],
+             k[2], k[3]);
+}
+
+void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu) {
+  auto out = openForWriting(file);
+  out << sensorHeader("imu", "SuperDynaSLAM simulated IMU (EuRoC ADIS16448-like noise)", SE3d())
+      << fmt::format(
+             "rate_hz: {}\n\n# inertial sensor noise model parameters (static)\n"
+             "gyroscope_noise_density: {:.6e}     # [ rad / s / sqrt(Hz) ]\n"
+             "gyroscope_random_walk: {:.6e}       # [ rad / s^2 / sqrt(Hz) ]\n"
+             "accelerometer_noise_density: {:.6e} # [ m / s^2 / sqrt(Hz) ]\n"
+             "accelerometer_random_walk: {:.6e}   # [ m / s^3 / sqrt(Hz) ]\n",
+             imu.rate_hz, imu.gyroscope_noise_density, imu.gyroscope_random_walk,
+             imu.accelerometer_noise_density, imu.accelerometer_random_walk);
+}
+
+void writeImuData(const fs::path& file, const ImuSequence& imu) {
+  auto out = openForWriting(file);
+  out << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+         "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  for (const ImuMeasurement& m : imu.measurements) {
+    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", m.t_ns, m.gyro.x(),
+                       m.gyro.y(), m.gyro.z(), m.accel.x(), m.accel.y(), m.accel.z());
+  }
+}
+
+void writeGroundTruth(const fs::path& folder, const ImuSequence& imu) {
+  {
+    auto yaml = openForWriting(folder / "sensor.yaml");
+    yaml << sensorHeader("visual-inertial", "SuperDynaSLAM simulation ground truth", SE3d());
+  }
+  auto out = openForWriting(folder / "data.csv");
+  out << "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+         "q_RS_z [], v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], "
+         "b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad s^-1], "
+         "b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n";
+  for (const ImuState& s : imu.states) {
+    const auto& p = s.T_w_b.t;
+    const auto& q = s.T_w_b.q;
+    out << fmt::format(
+        "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+        "{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n",
+        s.t_ns, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), s.v_w.x(), s.v_w.y(), s.v_w.z(),
+        s.bg.x(), s.bg.y(), s.bg.z(), s.ba.x(), s.ba.y(), s.ba.z());
+  }
+}
+
+void writeInstances(const fs::path& file, const std::vector<AgentRecord>& agents) {
+  auto out = openForWriting(file);
+  out << "# id,class,moving,t_begin_ns,t_end_ns   (moving: 1 if the agent moves at some time)\n";
+  for (const AgentRecord& a : agents) {
+    out << fmt::format("{},{},{},{},{}\n", a.instance_id, toString(a.object_class),
+                       a.ever_moving ? 1 : 0, a.t_begin_ns, a.t_end_ns);
+  }
+}
+
+// ---------------------------------------------------------------- textures from photos
+
+std::vector<cv::Mat> loadPhotos(const fs::path& dir) {
+  if (!fs::is_directory(dir)) throw InputError(InputLocation(dir), "texture folder not found");
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".PNG" || ext == ".JPG") {
+      files.push_back(entry.path());
+    }
+  }
+  std::sort(files.begin(), files.end());  // directory order is not deterministic
+  constexpr std::size_t kMaxPhotos = 64;
+  if (files.size() > kMaxPhotos) files.resize(kMaxPhotos);
+  std::vector<cv::Mat> photos;
+  for (const fs::path& file : files) {
+    cv::Mat image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    if (image.empty()) throw InputError(InputLocation(file), "cannot read image");
+    photos.push_back(std::move(image));
+  }
+  if (photos.empty()) throw InputError(InputLocation(dir), "no .png or .jpg images in folder");
+  return photos;
+}
+
+// ---------------------------------------------------------------- per-frame bookkeeping
+
+/// Pixel count of every instance id in a mask.
+std::map<std::uint16_t, int> countInstances(const cv::Mat& mask) {
+  std::map<std::uint16_t, int> counts;
+  for (int r = 0; r < mask.rows; ++r) {
+    const auto* row = mask.ptr<std::uint16_t>(r);
+    for (int c = 0; c < mask.cols; ++c) {
+      if (row[c] != 0) ++counts[row[c]];
+    }
+  }
+  return counts;
+}
+
+cv::Vec3b segmentationColour(std::uint16_t id) {
+  if (id == 0) return {70, 70, 70};
+  // A fixed pseudo-random bright colour per id (deterministic across runs and machines).
+  std::uint32_t h = id * 2654435761u;
+  h ^= h >> 15;
+  return {static_cast<uchar>(64 + (h & 0x7F) + 64), static_cast<uchar>(64 + ((h >> 8) & 0x7F)),
+          static_cast<uchar>(64 + ((h >> 16) & 0x7F) + 32)};
+}
+
+cv::Mat colourSegmentation(const cv::Mat& mask) {
+  cv::Mat colour(mask.size(), CV_8UC3);
+  for (int r = 0; r < mask.rows; ++r) {
+    const auto* in = mask.ptr<std::uint16_t>(r);
+    auto* out = colour.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < mask.cols; ++c)
+      out[c] = segmentationColour(in[c]);
+  }
+  return colour;
+}
+
+struct Landmark {
+  Eigen::Vector3d p_w;
+  TimeNs t_ns;
+};
+
+/// Random static-surface points seen by cam0 in this frame (exactly on the rendered surfaces).
+void sampleLandmarks(const RenderResult& render, const CameraModel& camera, const SE3d& T_w_c,
+                     TimeNs t_ns, int count, std::mt19937_64& rng,
+                     std::vector<Landmark>* landmarks) {
+  std::uniform_int_distribution<int> u(0, camera.width() - 1), v(0, camera.height() - 1);
+  for (int tries = 0, added = 0; added < count && tries < 20 * count; ++tries) {
+    const int x = u(rng), y = v(rng);
+    const float depth = render.depth.at<float>(y, x);
+    if (render.instance.at<std::uint16_t>(y, x) != 0 || !std::isfinite(depth)) continue;
+    const auto bearing = camera.unproject(Eigen::Vector2d(x, y));
+    if (!bearing || bearing->z() <= 0.0) continue;
+    landmarks->push_back({T_w_c * (*bearing * (depth / bearing->z())), t_ns});
+    ++added;
+  }
+}
+
+void writeLandmarks(const fs::path& file, const std::vector<Landmark>& landmarks) {
+  auto out = openForWriting(file);
+  out << "# id,x [m],y [m],z [m],t_ns (a frame whose cam0 sees it)\n";
+  for (std::size_t i = 0; i < landmarks.size(); ++i) {
+    const auto& p = landmarks[i].p_w;
+    out << fmt::format("{},{:.9f},{:.9f},{:.9f},{}\n", i, p.x(), p.y(), p.z(), landmarks[i].t_ns);
+  }
+}
+
+double proceduralExtent(SceneType scene) {
+  switch (scene) {
+    case SceneType::kIndoor:
+      return 3.0;
+    case SceneType::kParking:
+      return 12.0;
+    case SceneType::kStreet:
+      return 25.0;
+  }
+  return 10.0;
+}
+
+std::vector<TimeNs> frameTimes(const TimeRange& window, double rate_hz) {
+  std::vector<TimeNs> times;
+  for (std::int64_t k = 0;; ++k) {
+    const TimeNs t = window.begin + static_cast<TimeNs>(std::llround(k * 1e9 / rate_hz));
+    if (t > window.end) break;
+    times.push_back(t);
+  }
+  return times;
+}
+
+/// Everything the frame loop needs, prepared once.
+class SequenceWriter {
+ public:
+  SequenceWriter(const SimulationOptions& options, const Se3Spline& spline, const World& world,
+                 std::vector<TimeNs> frame_times)
+      : options_(options),
+        spline_(spline),
+        world_(world),
+        frame_times_(std::move(frame_times)),
+        camera_(options.rig.cameraModel()),
+        renderers_{Renderer(camera_), Renderer(camera_)},
+        T_b_c_{options.rig.T_b_c0(), options.rig.T_b_c1()},
+        rng_(options.seed ^ 0x5eedULL),
+        mav0_(options.output_dir / "mav0") {}
+
+  void run(const ProgressCallback& progress, SimulationSummary* summary) {
+    auto data0 = openForWriting(mav0_ / "cam0/data.csv");
+    auto data1 = openForWriting(mav0_ / "cam1/data.csv");
+    auto states = openForWriting(mav0_ / "instance_states.csv");
+    data0 << "#timestamp [ns],filename\n";
+    data1 << "#timestamp [ns],filename\n";
+    states << "# t_ns,id,moving,pixels_cam0,pixels_cam1   (agents seen by either camera)\n";
+    const int per_frame_landmarks =
+        static_cast<int>(std::ceil(double(options_.landmark_count) / frame_times_.size()));
+    double in_view_sum = 0.0, coverage_sum = 0.0;
+    for (std::size_t k = 0; k < frame_times_.size(); ++k) {
+      const TimeNs t = frame_times_[k];
+      const std::string name = fmt::format("{}.png", t);
+      const RenderResult left = renderCamera(0, t);
+      const RenderResult right = renderCamera(1, t);
+      writeFrame(0, name, left);
+      writeFrame(1, name, right);
+      data0 << t << ',' << name << '\n';
+      data1 << t << ',' << name << '\n';
+      const int in_view = writeInstanceStates(states, t, left, right, &coverage_sum);
+      in_view_sum += in_view;
+      summary->max_moving_in_view = std::max(summary->max_moving_in_view, double(in_view));
+      if (static_cast<int>(landmarks_.size()) < options_.landmark_count) {
+        sampleLandmarks(left, camera_, cameraPose(0, t), t, per_frame_landmarks, rng_, &landmarks_);
+      }
+      if (progress) progress(static_cast<int>(k) + 1, static_cast<int>(frame_times_.size()));
+    }
+    if (static_cast<int>(landmarks_.size()) > options_.landmark_count) {
+      landmarks_.resize(static_cast<std::size_t>(options_.landmark_count));
+    }
+    if (options_.landmark_count > 0) writeLandmarks(mav0_ / "landmarks.csv", landmarks_);
+    summary->frames = static_cast<int>(frame_times_.size());
+    summary->mean_moving_in_view = in_view_sum / frame_times_.size();
+    summary->mean_agent_coverage = coverage_sum / frame_times_.size();
+  }
+
+ private:
+  SE3d cameraPose(int cam, TimeNs t) const { return spline_.pose(t) * T_b_c_[cam]; }
+
+  RenderOptions renderOptions(int cam, TimeNs t) const {
+    RenderOptions render;
+    const double phase = 2.0 * M_PI * nsToSeconds(t - frame_times_.front()) / kIlluminationPeriodS;
+    render.gain = 1.0 + options_.illumination_change * std::sin(phase);
+    render.noise_sigma = options_.noise ? options_.pixel_noise_sigma : 0.0;
+    render.seed = options_.seed * 2 + static_cast<std::uint64_t>(cam);
+    if (options_.motion_blur_exposure_s > 0.0) {
+      render.blur_samples = options_.motion_blur_samples;
+      render.exposure_s = options_.motion_blur_exposure_s;
+    }
+    return render;
+  }
+
+  RenderResult renderCamera(int cam, TimeNs t) const {
+    const auto pose_at = [this, cam](TimeNs time) { return cameraPose(cam, time); };
+    return renderers_[static_cast<std::size_t>(cam)].render(world_.scene, pose_at, t,
+                                                            renderOptions(cam, t));
+  }
+
+  void writeFrame(int cam, const std::string& name, const RenderResult& render) const {
+    const fs::path folder = mav0_ / fmt::format("cam{}", cam);
+    writeImage(folder / "data" / name, render.image);
+    writeImage(folder / "mask" / name, render.instance);
+    if (options_.semantic_color) {
+      fs::create_directories(folder / "segmentation");
+      writeImage(folder / "segmentation" / name, colourSegmentation(render.instance));
+    }
+  }
+
+  /// Writes the rows of the agents either camera sees; returns the moving ones in view of cam0.
+  int writeInstanceStates(std::ofstream& out, TimeNs t, const RenderResult& left,
+                          const RenderResult& right, double* coverage_sum) const {
+    const auto counts0 = countInstances(left.instance);
+    const auto counts1 = countInstances(right.instance);
+    int in_view = 0, agent_pixels = 0;
+    for (const SceneObject& object : world_.scene.objects) {
+      if (object.instance_id == 0) continue;
+      const auto it0 = counts0.find(object.instance_id);
+      const auto it1 = counts1.find(object.instance_id);
+      const int n0 = it0 == counts0.end() ? 0 : it0->second;
+      const int n1 = it1 == counts1.end() ? 0 : it1->second;
+      if (n0 == 0 && n1 == 0) continue;
+      const bool moving = object.is_moving && object.is_moving(t);
+      out << fmt::format("{},{},{},{},{}\n", t, object.instance_id, moving ? 1 : 0, n0, n1);
+      agent_pixels += n0;
+      if (moving && n0 >= kInViewPixels) ++in_view;
+    }
+    *coverage_sum += double(agent_pixels) / (left.instance.rows * left.instance.cols);
+    return in_view;
+  }
+
+  const SimulationOptions& options_;
+  const Se3Spline& spline_;
+  const World& world_;
+  std::vector<TimeNs> frame_times_;
+  CameraModel camera_;
+  std::array<Renderer, 2> renderers_;
+  std::array<SE3d, 2> T_b_c_;
+  std::mt19937_64 rng_;
+  fs::path mav0_;
+  std::vector<Landmark> landmarks_;
+};
+
+Se3Spline fitMotion(const MotionWindow& motion, const SimulationOptions& options) {
+  const Se3Spline spline = Se3Spline::fit(motion.body_poses, secondsToNs(options.knot_spacing_s));
+  const TimeRange valid = spline.validRange();
+  if (valid.begin > motion.window.begin || valid.end < motion.window.end) {
+    throw InputError(InputLocation(options.motion.trajectory_file.value_or("procedural")),
+                     fmt::format("the motion covers {:.2f}..{:.2f} s but the sequence needs "
+                                 "{:.2f}..{:.2f} s; shorten --duration or change --start",
+                                 nsToSeconds(valid.begin), nsToSeconds(valid.end),
+                                 nsToSeconds(motion.window.begin), nsToSeconds(motion.window.end)));
+  }
+  return spline;
+}
+
+void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const MotionWindow& m,
+                         const SimulationSummary& s) {
+  auto out = openForWriting(file);
+  out << fmt::format(
+      "# SuperDynaSLAM synthetic sequence: effective options and summary\n"
+      "trajectory: {}\nmotion_convention: {}\nstart_s: {}\nduration_s: {}\nscene: {}\n"
+      "dynamic: {}\nseed: {}\nnoise: {}\ndistortion: {}\nillumination_change: {}\n"
+      "motion_blur_exposure_s: {}\ntexture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\n"
+      "imu_rate_hz: {}\nknot_spacing_s: {}\nsummary:\n  frames: {}\n  imu_samples: {}\n"
+      "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"
+      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  path_length_m: {:.3f}\n",
+      o.motion.trajectory_file ? o.motion.trajectory_file->string() : "procedural",
+      toString(m.convention), o.motion.start_s, o.motion.duration_s, toString(o.world.scene),
+      toString(o.world.dynamic), o.seed, o.noise, o.rig.distortion, o.illumination_change,
+      o.motion_blur_exposure_s, o.texture_dir ? o.texture_dir->string() : "procedural",
+      o.rig.baseline_m, o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, s.frames,
+      s.imu_samples, s.static_agents, s.moving_agents, s.mean_moving_in_view, s.max_moving_in_view,
+      s.mean_agent_coverage, s.path_length_m);
+}
+
+}  // namespace
+
+CameraModel RigOptions::cameraModel() const {
+  if (!distortion) return CameraModel(width, height, fx, fy, cx, cy);
+  return CameraModel(width, height, fx, fy, cx, cy, DistortionModel::kRadialTangential,
+                     {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05});
+}
+
+SE3d RigOptions::T_b_c0() const {
+  // EuRoC MAV cam0 T_BS (VI-Sensor): the camera looks along the body z axis.
+  Eigen::Matrix4d M;
+  M << 0.0148655429818, -0.999880929698, 0.00414029679422, -0.0216401454975,  //
+      0.999557249008, 0.0149672133247, 0.025715529948, -0.064676986768,       //
+      -0.0257744366974, 0.00375618835797, 0.999660727178, 0.00981073058949,   //
+      0.0, 0.0, 0.0, 1.0;
+  return SE3d::fromMatrix(M);
+}
+
+SE3d RigOptions::T_b_c1() const {
+  const SE3d T_b_c0_pose = T_b_c0();
+  return T_b_c0_pose * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(baseline_m, 0, 0));
+}
+
+void RigOptions::validate() const {
+  cameraModel();  // checks size and intrinsics
+  if (!(baseline_m > 0.0)) throw OptionError("baseline", "must be > 0");
+  if (!(camera_rate_hz > 0.0)) throw OptionError("camera-rate", "must be > 0");
+}
+
+void SimulationOptions::validate() const {
+  if (output_dir.empty()) throw OptionError("out", "an output folder is required");
+  rig.validate();
+  world.validate();
+  imu.validate();
+  if (!(illumination_change >= 0.0 && illumination_change <= 0.9)) {
+    throw OptionError("illumination-change", "must be in [0, 0.9]");
+  }
+  if (motion_blur_exposure_s < 0.0 || motion_blur_exposure_s > 0.1) {
+    throw OptionError("motion-blur", "exposure must be in [0, 0.1] s");
+  }
+  if (motion_blur_samples < 2) throw OptionError("blur-samples", "must be >= 2");
+  if (pixel_noise_sigma < 0.0) throw OptionError("pixel-noise", "must be >= 0");
+  if (landmark_count < 0) throw OptionError("landmarks", "must be >= 0");
+  if (!(knot_spacing_s >= 0.01 && knot_spacing_s <= 1.0)) {
+    throw OptionError("knot-spacing", "must be in [0.01, 1] s");
+  }
+}
+
+SimulationSummary generateSequence(const SimulationOptions& options,
+                                   const ProgressCallback& progress) {
+  const auto started = std::chrono::steady_clock::now();
+  options.validate();
+  const MotionWindow motion = loadMotion(options.motion, proceduralExtent(options.world.scene));
+  const Se3Spline spline = fitMotion(motion, options);
+  prepareOutputFolder(options.output_dir, options.overwrite);
+
+  const CameraModel camera = options.rig.cameraModel();
+  CameraPath camera_path;
+  const SE3d T_b_c0 = options.rig.T_b_c0();
+  camera_path.T_w_c = [&](TimeNs t) { return spline.pose(t) * T_b_c0; };
+  camera_path.range = motion.window;
+  camera_path.horizontal_fov_rad = 2.0 * std::atan(0.5 * camera.width() / camera.fx());
+  WorldOptions world_options = options.world;
+  world_options.seed = options.seed;
+  if (options.texture_dir) world_options.photos = loadPhotos(*options.texture_dir);
+  const World world = buildWorld(world_options, camera_path);
+
+  ImuNoiseOptions imu_options = options.imu;
+  imu_options.noise = options.noise;
+  imu_options.seed = options.seed;
+  const ImuSequence imu = ImuSimulator(imu_options).simulate(spline, motion.window);
+
+  const fs::path mav0 = options.output_dir / "mav0";
+  writeCameraYaml(mav0 / "cam0/sensor.yaml", "cam0", options.rig, options.rig.T_b_c0());
+  writeCameraYaml(mav0 / "cam1/sensor.yaml", "cam1", options.rig, options.rig.T_b_c1());
+  writeImuYaml(mav0 / "imu0/sensor.yaml", imu_options);
+  writeImuData(mav0 / "imu0/data.csv", imu);
+  writeGroundTruth(mav0 / "state_groundtruth_estimate0", imu);
+  writeInstances(mav0 / "instances.csv", world.agents);
+
+  SimulationSummary summary;
+  summary.imu_samples = imu.measurements.size();
+  for (const AgentRecord& agent : world.agents) {
+    ++(agent.ever_moving ? summary.moving_agents : summary.static_agents);
+  }
+  for (std::size_t i = 1; i < imu.states.size(); ++i) {
+    summary.path_length_m += (imu.states[i].T_w_b.t - imu.states[i - 1].T_w_b.t).norm();
+  }
+  SequenceWriter writer(options, spline, world,
+                        frameTimes(motion.window, options.rig.camera_rate_hz));
+  writer.run(progress, &summary);
+  if (options.semantic_color) {
+    auto colours = openForWriting(mav0 / "segmentation_colors.csv");
+    colours << "# id,r,g,b\n0,70,70,70\n";
+    for (const AgentRecord& agent : world.agents) {
+      const cv::Vec3b bgr = segmentationColour(agent.instance_id);
+      colours << fmt::format("{},{},{},{}\n", agent.instance_id, bgr[2], bgr[1], bgr[0]);
+    }
+  }
+  // No wall-clock time in the files: the same seed must give byte-identical output.
+  writeSimulationYaml(options.output_dir / "simulation.yaml", options, motion, summary);
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return summary;
+}
+
+}  // namespace superdyna::sim

@@ -1,0 +1,108 @@
+#include "superdyna/sim/world_builder.h"
+
+#include <gtest/gtest.h>
+
+#include "superdyna/core/error.h"
+#include "superdyna/sim/agents.h"
+
+namespace superdyna::sim {
+namespace {
+
+/// A camera driving along +x at 5 m/s, 1.5 m above z = 0, looking forward (z_c = +x).
+CameraPath straightDrive() {
+  CameraPath path;
+  Eigen::Matrix3d R;
+  R.col(0) = -Eigen::Vector3d::UnitY();  // image right
+  R.col(1) = -Eigen::Vector3d::UnitZ();  // image down
+  R.col(2) = Eigen::Vector3d::UnitX();   // optical axis
+  path.T_w_c = [R](TimeNs t) { return SE3d(R, Eigen::Vector3d(5.0 * nsToSeconds(t), 0, 1.5)); };
+  path.range = {0, 20 * kNsPerSecond};
+  path.horizontal_fov_rad = 1.4;
+  return path;
+}
+
+WorldOptions coarseWorld(SceneType scene, DynamicLevel level) {
+  WorldOptions options;
+  options.scene = scene;
+  options.dynamic = level;
+  options.texel_scale = 4.0;  // coarse textures: the test is about geometry
+  return options;
+}
+
+int countAgents(const World& world, bool moving) {
+  int n = 0;
+  for (const auto& agent : world.agents)
+    n += agent.ever_moving == moving;
+  return n;
+}
+
+TEST(WorldBuilderTest, EveryLevelHasStaticAgentsAndMovingOnesGrowWithTheLevel) {
+  const CameraPath path = straightDrive();
+  int previous_moving = -1;
+  for (auto level :
+       {DynamicLevel::kNone, DynamicLevel::kLow, DynamicLevel::kMid, DynamicLevel::kHigh}) {
+    const World world = buildWorld(coarseWorld(SceneType::kStreet, level), path);
+    EXPECT_GT(countAgents(world, false), 5) << toString(level);
+    const int moving = countAgents(world, true);
+    if (level == DynamicLevel::kNone) {
+      EXPECT_EQ(moving, 0);
+    }
+    EXPECT_GT(moving, previous_moving) << toString(level);
+    previous_moving = moving;
+    EXPECT_NEAR(world.ground_z, 1.5 - 1.2, 1e-12);
+  }
+}
+
+TEST(WorldBuilderTest, AgentsKeepClearOfTheCamera) {
+  const CameraPath path = straightDrive();
+  const World world = buildWorld(coarseWorld(SceneType::kStreet, DynamicLevel::kHigh), path);
+  for (const SceneObject& object : world.scene.objects) {
+    if (object.instance_id == 0) continue;
+    // Vehicles keep 3.5 m (moving) or 1 m + their half diagonal (parked) from the camera path;
+    // people 1.5 m (walking) or 0.8 m + their half diagonal (standing).
+    const double min_distance = object.object_class == ObjectClass::kVehicle ? 3.0 : 1.2;
+    for (TimeNs t = path.range.begin; t <= path.range.end; t += 50 * kNsPerMillisecond) {
+      const auto pose = object.T_w_o(t);
+      if (!pose) continue;
+      const Eigen::Vector2d camera = path.T_w_c(t).t.head<2>();
+      EXPECT_GT((pose->t.head<2>() - camera).norm(), min_distance)
+          << "instance " << object.instance_id << " at " << nsToSeconds(t) << " s";
+    }
+  }
+}
+
+TEST(WorldBuilderTest, IndoorWorldsHavePeopleOnlyAndEveryTextureIndexIsValid) {
+  const World world =
+      buildWorld(coarseWorld(SceneType::kIndoor, DynamicLevel::kMid), straightDrive());
+  for (const auto& agent : world.agents) {
+    EXPECT_EQ(agent.object_class, ObjectClass::kPedestrian);
+  }
+  for (const SceneObject& object : world.scene.objects) {
+    for (const Quad& quad : object.quads) {
+      EXPECT_GE(quad.texture, 0);
+      EXPECT_LT(quad.texture, static_cast<int>(world.scene.textures.size()));
+    }
+  }
+}
+
+TEST(WorldBuilderTest, SameSeedSameWorld) {
+  const CameraPath path = straightDrive();
+  const World a = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kMid), path);
+  const World b = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kMid), path);
+  ASSERT_EQ(a.agents.size(), b.agents.size());
+  for (std::size_t i = 0; i < a.agents.size(); ++i) {
+    EXPECT_EQ(a.agents[i].t_begin_ns, b.agents[i].t_begin_ns);
+    EXPECT_EQ(a.agents[i].object_class, b.agents[i].object_class);
+  }
+}
+
+TEST(WorldBuilderTest, ParsesNamesAndRejectsUnknownOnes) {
+  EXPECT_EQ(parseSceneType("parking"), SceneType::kParking);
+  EXPECT_EQ(parseDynamicLevel("high"), DynamicLevel::kHigh);
+  EXPECT_EQ(movingAgentTarget(DynamicLevel::kMid), 5);
+  EXPECT_THROW(parseSceneType("desert"), OptionError);
+  EXPECT_THROW(parseDynamicLevel("extreme"), OptionError);
+}
+
+}  // namespace
+}  // namespace superdyna::sim
