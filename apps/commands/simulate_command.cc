@@ -70,6 +70,11 @@ class SimulateCommand : public Command {
     sub_->add_flag("--overwrite", options_.overwrite, "Allow a non-empty output folder");
     sub_->add_option("--seed", options_.seed, "Seed of the world, agents and noise")
         ->capture_default_str();
+    sub_->add_option("--preview", options_.preview_path,
+                     "Also write a PNG of one cam0 frame beside its colour-coded instance mask");
+    sub_->add_option("--preview-frame", options_.preview_frame, "Frame index the preview shows")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
   }
 
   void addMotionOptions() {

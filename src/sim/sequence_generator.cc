@@ -291,6 +291,7 @@ class SequenceWriter {
       if (static_cast<int>(landmarks_.size()) < options_.landmark_count) {
         sampleLandmarks(left, camera_, cameraPose(0, t), t, per_frame_landmarks, rng_, &landmarks_);
       }
+      if (options_.preview_path && k == previewIndex()) writePreview(left);
       if (progress) progress(static_cast<int>(k) + 1, static_cast<int>(frame_times_.size()));
     }
     if (static_cast<int>(landmarks_.size()) > options_.landmark_count) {
@@ -304,6 +305,26 @@ class SequenceWriter {
 
  private:
   SE3d cameraPose(int cam, TimeNs t) const { return spline_.pose(t) * T_b_c_[cam]; }
+
+  std::size_t previewIndex() const {
+    return std::min(static_cast<std::size_t>(std::max(options_.preview_frame, 0)),
+                    frame_times_.size() - 1);
+  }
+
+  /// The frame beside its instance mask (each agent in its own colour), for a quick look.
+  void writePreview(const RenderResult& render) const {
+    cv::Mat gray_bgr, preview;
+    cv::cvtColor(render.image, gray_bgr, cv::COLOR_GRAY2BGR);
+    cv::Mat mask = colourSegmentation(render.instance);
+    mask.setTo(cv::Scalar(0, 0, 0), render.instance == 0);
+    cv::hconcat(gray_bgr, mask, preview);
+    if (options_.preview_path->has_parent_path()) {
+      fs::create_directories(options_.preview_path->parent_path());
+    }
+    if (!cv::imwrite(options_.preview_path->string(), preview)) {
+      throw InputError(InputLocation(*options_.preview_path), "cannot write preview image");
+    }
+  }
 
   RenderOptions renderOptions(int cam, TimeNs t) const {
     RenderOptions render;

@@ -35,7 +35,10 @@ class SequenceGeneratorTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new ScratchDir("sequence");
-    summary_ = generateSequence(shortSequence(dir_->path() / "a"));
+    SimulationOptions options = shortSequence(dir_->path() / "a");
+    options.preview_path = dir_->path() / "preview.png";
+    options.preview_frame = 1000;  // past the end: the last frame
+    summary_ = generateSequence(options);
   }
   static void TearDownTestSuite() {
     delete dir_;
@@ -100,6 +103,9 @@ TEST_F(SequenceGeneratorTest, WritesAnEurocSequenceTheReaderAccepts) {
   const Eigen::Vector3d baseline = (cam0.T_b_c.inverse() * dataset.cam1Calibration()->T_b_c).t;
   EXPECT_LT((baseline - Eigen::Vector3d(0.11, 0, 0)).norm(), 1e-9);
   EXPECT_DOUBLE_EQ(dataset.imuCalibration()->gyroscope_noise_density, 1.6968e-4);
+  const cv::Mat preview = cv::imread((dir_->path() / "preview.png").string());
+  EXPECT_EQ(preview.cols, 2 * 752);
+  EXPECT_EQ(preview.rows, 480);
   const cv::Mat image = io::loadImage(dataset.stereoFrames()[10].cam0, cam0);
   cv::Scalar mean, stddev;
   cv::meanStdDev(image, mean, stddev);

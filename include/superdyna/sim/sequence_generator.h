@@ -60,6 +60,9 @@ struct SimulationOptions {
   int landmark_count = 2000;    ///< Ground-truth landmarks to write (0 = none).
   double knot_spacing_s = 0.1;  ///< Spline knot spacing fitted to the motion [s].
   std::uint64_t seed = 1;       ///< Seeds the world, agents, IMU noise and image noise.
+  /// Optional PNG showing one cam0 frame beside its colour-coded instance mask.
+  std::optional<std::filesystem::path> preview_path;
+  int preview_frame = 0;  ///< Index of the frame the preview shows (clamped to the last).
 
   void validate() const;
 };
