@@ -13,20 +13,6 @@
 namespace superdyna::eval {
 namespace {
 
-/// Runs `fn` and expects an exception of type E whose message contains every fragment.
-template <typename E, typename Fn>
-void expectError(Fn fn, std::initializer_list<std::string> fragments) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected an exception";
-  } catch (const E& e) {
-    for (const auto& fragment : fragments) {
-      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << fragment << "'";
-    }
-  }
-}
-
 Trajectory shiftedInTime(const Trajectory& trajectory, TimeNs shift_ns) {
   Trajectory out = trajectory;
   for (StampedPose& pose : out)
@@ -87,11 +73,11 @@ TEST(EvaluateTest, TooFewAssociationsExplainsWhy) {
     est.push_back({(200 + i) * kNsPerSecond, pose});
   }
   EvaluationOptions options;
-  expectError<InputError>(
+  test::expectError<InputError>(
       [&] { evaluate(gt, est, options); },
       {"only 0 pose pairs", "10 poses from 100.000 s to 109.000 s",
        "10 poses from 200.000 s to 209.000 s", "--max-diff (now 10 ms)", "--offset (now 0 ms)"});
-  expectError<InputError>([&] { evaluate(gt, {}, options); }, {"Estimate: no poses"});
+  test::expectError<InputError>([&] { evaluate(gt, {}, options); }, {"Estimate: no poses"});
   options.association.offset_ns = -100 * kNsPerSecond;
   EXPECT_EQ(evaluate(gt, est, options).pairs, 10u);
 }
@@ -99,13 +85,13 @@ TEST(EvaluateTest, TooFewAssociationsExplainsWhy) {
 TEST(EvaluateTest, ValidateNamesTheOption) {
   EvaluationOptions options;
   options.association.max_diff_ns = -5;
-  expectError<OptionError>([&] { options.validate(); }, {"max_diff_ns"});
+  test::expectError<OptionError>([&] { options.validate(); }, {"max_diff_ns"});
   options = {};
   options.rpe.delta = 0.0;
-  expectError<OptionError>([&] { options.validate(); }, {"delta"});
+  test::expectError<OptionError>([&] { options.validate(); }, {"delta"});
   options = {};
   options.align_first_n = 2;
-  expectError<OptionError>([&] { options.validate(); }, {"align_first_n"});
+  test::expectError<OptionError>([&] { options.validate(); }, {"align_first_n"});
   options.align = AlignmentMode::kNone;
   EXPECT_NO_THROW(options.validate());
   options.align_first_n = -1;  // all poses
@@ -118,7 +104,7 @@ TEST(EvaluateTest, StraightLineCannotBeAlignedButCanBeMeasuredUnaligned) {
     line.push_back({i * 50 * kNsPerMillisecond,
                     SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.1 * i, 0, 0))});
   }
-  expectError<InputError>([&] { evaluate(line, line, EvaluationOptions{}); }, {"one line"});
+  test::expectError<InputError>([&] { evaluate(line, line, EvaluationOptions{}); }, {"one line"});
   EvaluationOptions unaligned;
   unaligned.align = AlignmentMode::kNone;
   EXPECT_LT(evaluate(line, line, unaligned).ate_trans.max, 1e-12);
@@ -154,7 +140,7 @@ TEST(EvaluateTest, MultiRunSummaryOverPerturbedRuns) {
   EXPECT_TRUE(std::isnan(single.ate_rmse.ci95_halfwidth));
   EXPECT_THROW(evaluateRuns(gt, runs, EvaluationOptions{}, {"a", "b"}), OptionError);
   EXPECT_THROW(summarizeRuns({}), InputError);
-  expectError<InputError>(
+  test::expectError<InputError>(
       [&] {
         evaluateRuns(gt, {runs[0], {}}, EvaluationOptions{});
       },

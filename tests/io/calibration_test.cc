@@ -19,20 +19,6 @@ constexpr const char* kCam0Yaml = "data/euroc/V1_01_easy_micro/mav0/cam0/sensor.
 constexpr const char* kCam1Yaml = "data/euroc/V1_01_easy_micro/mav0/cam1/sensor.yaml";
 constexpr const char* kImuYaml = "data/euroc/V1_01_easy_micro/mav0/imu0/sensor.yaml";
 
-/// Runs `fn` and expects an InputError whose message contains every fragment.
-template <typename Fn>
-void expectInputError(Fn fn, std::initializer_list<std::string> fragments) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected an InputError";
-  } catch (const InputError& e) {
-    for (const auto& fragment : fragments) {
-      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << fragment << "'";
-    }
-  }
-}
-
 /// A camera sensor.yaml in the EuRoC layout (OpenCV directive first); cases edit it with
 /// replaced().
 std::string cameraYaml() {
@@ -202,11 +188,11 @@ TEST(CalibrationTest, RejectsBadCameraFilesNamingFileLineAndField) {
     }
     std::vector<std::string> fragments = c.fragments;
     fragments.resize(3);
-    expectInputError([&] { readCameraCalibration(file); },
-                     {fragments[0], fragments[1], fragments[2]});
+    test::expectError([&] { readCameraCalibration(file); },
+                      {fragments[0], fragments[1], fragments[2]});
   }
-  expectInputError([&] { readCameraCalibration(dir / "absent.yaml"); },
-                   {"absent.yaml", "does not exist"});
+  test::expectError([&] { readCameraCalibration(dir / "absent.yaml"); },
+                    {"absent.yaml", "does not exist"});
 }
 
 TEST(CalibrationTest, YamlSyntaxErrorNamesTheFileLine) {
@@ -231,13 +217,13 @@ TEST(CalibrationTest, RejectsBadImuFiles) {
   const auto file = dir / "sensor.yaml";
   const std::string yaml = readFile(imu_file);
   writeFile(file, replaced(yaml, "gyroscope_random_walk: 1.9393e-05", "gyroscope_random_walk: -1"));
-  expectInputError([&] { readImuCalibration(file); },
-                   {"sensor.yaml:18 [gyroscope_random_walk]", "must be positive"});
+  test::expectError([&] { readImuCalibration(file); },
+                    {"sensor.yaml:18 [gyroscope_random_walk]", "must be positive"});
   writeFile(file, replaced(yaml, "accelerometer_noise_density: 2.0000e-3", ""));
-  expectInputError([&] { readImuCalibration(file); },
-                   {"sensor.yaml [accelerometer_noise_density]: missing field"});
+  test::expectError([&] { readImuCalibration(file); },
+                    {"sensor.yaml [accelerometer_noise_density]: missing field"});
   writeFile(file, replaced(yaml, "rate_hz: 200", "rate_hz: fast"));
-  expectInputError([&] { readImuCalibration(file); }, {"[rate_hz]", "'fast' is not a number"});
+  test::expectError([&] { readImuCalibration(file); }, {"[rate_hz]", "'fast' is not a number"});
 }
 
 TEST(CalibrationTest, ValidatesTransformsAndCalibrationsBuiltInCode) {
@@ -249,8 +235,8 @@ TEST(CalibrationTest, ValidatesTransformsAndCalibrationsBuiltInCode) {
   EXPECT_NEAR((T.rotation().transpose() * T.rotation() - Eigen::Matrix3d::Identity()).norm(), 0.0,
               1e-12);
   M(1, 1) = -1.0;  // a reflection
-  expectInputError([&] { checkedRigidTransform(M, InputLocation{"x.yaml"}); },
-                   {"x.yaml", "not orthonormal"});
+  test::expectError([&] { checkedRigidTransform(M, InputLocation{"x.yaml"}); },
+                    {"x.yaml", "not orthonormal"});
 
   CameraCalibration c;
   c.width = 640;
@@ -259,10 +245,10 @@ TEST(CalibrationTest, ValidatesTransformsAndCalibrationsBuiltInCode) {
   c.fx = c.fy = 500.0;
   EXPECT_NO_THROW(validateCameraCalibration(c, InputLocation{"c"}));
   c.distortion = {0.1};
-  expectInputError([&] { validateCameraCalibration(c, InputLocation{"c"}); },
-                   {"distortion model 'none' takes no coefficients, found 1"});
+  test::expectError([&] { validateCameraCalibration(c, InputLocation{"c"}); },
+                    {"distortion model 'none' takes no coefficients, found 1"});
   c.distortion_model = DistortionModel::kEquidistant;
-  expectInputError([&] { validateCameraCalibration(c, InputLocation{"c"}); }, {"4 (k1 k2 k3 k4)"});
+  test::expectError([&] { validateCameraCalibration(c, InputLocation{"c"}); }, {"4 (k1 k2 k3 k4)"});
 }
 
 TEST(CalibrationTest, LoadsImagesCheckedAgainstTheCalibration) {
@@ -280,16 +266,16 @@ TEST(CalibrationTest, LoadsImagesCheckedAgainstTheCalibration) {
   const auto small = dir / "small.png";
   cv::Mat colour(480, 640, CV_8UC3, cv::Scalar(10, 20, 30));
   ASSERT_TRUE(cv::imwrite(small.string(), colour));
-  expectInputError([&] { loadImage(small, cam0); },
-                   {"small.png", "is 640x480, expected 752x480", "cam0"});
+  test::expectError([&] { loadImage(small, cam0); },
+                    {"small.png", "is 640x480, expected 752x480", "cam0"});
   CameraCalibration vga = cam0;
   vga.width = 640;
   EXPECT_EQ(loadImage(small, vga).type(), CV_8UC1);  // colour converted to grayscale
 
   const auto garbage = dir / "garbage.png";
   writeFile(garbage, "\x89PNG this is not really an image");
-  expectInputError([&] { loadImage(garbage, cam0); }, {"garbage.png", "cannot decode"});
-  expectInputError([&] { loadImage(dir / "absent.png", cam0); }, {"absent.png", "does not exist"});
+  test::expectError([&] { loadImage(garbage, cam0); }, {"garbage.png", "cannot decode"});
+  test::expectError([&] { loadImage(dir / "absent.png", cam0); }, {"absent.png", "does not exist"});
 }
 
 }  // namespace

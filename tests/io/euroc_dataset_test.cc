@@ -27,19 +27,6 @@ constexpr TimeNs kFirstImuNs = 1403715273262142976;
 constexpr TimeNs kLastImuNs = 1403715418857143040;  // last row of imu0/data.csv
 constexpr TimeNs kLastGroundTruthNs = 1403715417962142976;
 
-template <typename Fn>
-void expectInputError(Fn fn, std::initializer_list<std::string> fragments) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected an InputError";
-  } catch (const InputError& e) {
-    for (const auto& fragment : fragments) {
-      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << fragment << "'";
-    }
-  }
-}
-
 bool anyContains(const std::vector<std::string>& texts, const std::string& fragment) {
   return std::any_of(texts.begin(), texts.end(), [&](const std::string& text) {
     return text.find(fragment) != std::string::npos;
@@ -332,7 +319,7 @@ TEST(EurocDatasetTest, RejectsCorruptedCopiesNamingFileLineAndField) {
     makeSmallCopy(sequence, dir);
     c.corrupt(dir / "mav0");
     std::vector<std::string> fragments = c.fragments;
-    expectInputError([&] { EurocDataset::open(dir.path()); }, {fragments[0], fragments[1]});
+    test::expectError([&] { EurocDataset::open(dir.path()); }, {fragments[0], fragments[1]});
   }
 }
 
@@ -365,19 +352,20 @@ TEST(EurocDatasetTest, LoadImageRejectsWrongSizeAndGarbage) {
   ASSERT_TRUE(cv::imwrite(frame.cam0.string(), cv::Mat(240, 376, CV_8UC1, cv::Scalar(128))));
   writeFile(frame.cam1, "not a png at all, just bytes");
   const EurocDataset reopened = EurocDataset::open(dir.path());
-  expectInputError([&] { loadImage(frame.cam0, reopened.cam0Calibration()); },
-                   {"cam0/data/1403715273312143104.png", "is 376x240, expected 752x480"});
-  expectInputError([&] { loadImage(frame.cam1, *reopened.cam1Calibration()); },
-                   {"cam1/data/1403715273312143104.png", "cannot decode"});
+  test::expectError([&] { loadImage(frame.cam0, reopened.cam0Calibration()); },
+                    {"cam0/data/1403715273312143104.png", "is 376x240, expected 752x480"});
+  test::expectError([&] { loadImage(frame.cam1, *reopened.cam1Calibration()); },
+                    {"cam1/data/1403715273312143104.png", "cannot decode"});
 }
 
 TEST(EurocDatasetTest, RejectsFoldersThatAreNotEurocSequences) {
   ScratchDir dir("euroc_not");
-  expectInputError([&] { EurocDataset::open(dir / "absent"); }, {"absent", "does not exist"});
+  test::expectError([&] { EurocDataset::open(dir / "absent"); }, {"absent", "does not exist"});
   fs::create_directories(dir / "mav0/imu0");
-  expectInputError([&] { EurocDataset::open(dir.path()); }, {"not a EuRoC sequence"});
+  test::expectError([&] { EurocDataset::open(dir.path()); }, {"not a EuRoC sequence"});
   fs::create_directories(dir / "mav0/cam0");
-  expectInputError([&] { EurocDataset::open(dir.path()); }, {"cam0/sensor.yaml", "does not exist"});
+  test::expectError([&] { EurocDataset::open(dir.path()); },
+                    {"cam0/sensor.yaml", "does not exist"});
 }
 
 }  // namespace

@@ -19,19 +19,6 @@ using test::writeFile;
 
 constexpr const char* kSnippet = "data/kitti/snippet_1";
 
-template <typename Fn>
-void expectInputError(Fn fn, std::initializer_list<std::string> fragments) {
-  try {
-    fn();
-    ADD_FAILURE() << "expected an InputError";
-  } catch (const InputError& e) {
-    for (const auto& fragment : fragments) {
-      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << fragment << "'";
-    }
-  }
-}
-
 /// Labelled calib.txt as the KITTI odometry benchmark ships it (values of the grayscale pair
 /// from the snippet; P2/P3 chosen so that the colour baseline is (42 + 329) / 700 = 0.53 m).
 std::string labelledCalib() {
@@ -201,8 +188,8 @@ TEST(KittiDatasetTest, RejectsBadSequencesWithClearErrors) {
     c.corrupt(dir.path());
     std::vector<std::string> fragments = c.fragments;
     fragments.resize(3);
-    expectInputError([&] { KittiDataset::open(dir.path()); },
-                     {fragments[0], fragments[1], fragments[2]});
+    test::expectError([&] { KittiDataset::open(dir.path()); },
+                      {fragments[0], fragments[1], fragments[2]});
   }
 }
 
@@ -214,8 +201,8 @@ TEST(KittiDatasetTest, LoadImageChecksEveryImageAgainstTheFirst) {
       cv::imwrite((dir / "image_l/000002.png").string(), cv::Mat(50, 100, CV_8UC1, cv::Scalar(7))));
   const KittiDataset dataset = KittiDataset::open(dir.path());
   EXPECT_EQ(loadImage(dataset.monoFrames()[1].path, dataset.leftCalibration()).cols, 1226);
-  expectInputError([&] { loadImage(dataset.monoFrames()[2].path, dataset.leftCalibration()); },
-                   {"image_l/000002.png", "is 100x50, expected 1226x370"});
+  test::expectError([&] { loadImage(dataset.monoFrames()[2].path, dataset.leftCalibration()); },
+                    {"image_l/000002.png", "is 100x50, expected 1226x370"});
 }
 
 }  // namespace

@@ -30,20 +30,6 @@ void expectSame(const Trajectory& a, const Trajectory& b, double tolerance) {
   }
 }
 
-/// Runs `read` and expects an InputError whose message contains every fragment.
-template <typename Fn>
-void expectInputError(Fn read, std::initializer_list<std::string> fragments) {
-  try {
-    read();
-    ADD_FAILURE() << "expected an InputError";
-  } catch (const InputError& e) {
-    for (const auto& fragment : fragments) {
-      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << fragment << "'";
-    }
-  }
-}
-
 TEST(TrajectoryIoTest, RoundTripsEveryFormat) {
   ScratchDir dir("traj_roundtrip");
   const Trajectory original = makeTrajectory();
@@ -84,7 +70,7 @@ TEST(TrajectoryIoTest, ReadsOpenLorisSegments) {
   EXPECT_EQ(second.front().t_ns, 1563004641138520000LL);  // first row after "seq: 2"
   EXPECT_LT(second.size(), all.size());
   options.segment = 9;
-  expectInputError([&] { readTrajectory(market, options); }, {"seq: 9", "segments found: 1, 2"});
+  test::expectError([&] { readTrajectory(market, options); }, {"seq: 9", "segments found: 1, 2"});
 }
 
 TEST(TrajectoryIoTest, ReadsRealTrajectories) {
@@ -128,8 +114,8 @@ TEST(TrajectoryIoTest, RejectsCorruptRowsNamingFileAndLine) {
     const auto file = dir / "bad.txt";
     writeFile(file, c.content);
     std::vector<std::string> fragments = c.fragments;
-    expectInputError([&] { readTrajectory(file); }, {fragments[0], fragments[1]});
-    if (fragments.size() > 2) expectInputError([&] { readTrajectory(file); }, {fragments[2]});
+    test::expectError([&] { readTrajectory(file); }, {fragments[0], fragments[1]});
+    if (fragments.size() > 2) test::expectError([&] { readTrajectory(file); }, {fragments[2]});
   }
 }
 
@@ -137,16 +123,16 @@ TEST(TrajectoryIoTest, RejectsBadKittiAndMissingFiles) {
   ScratchDir dir("traj_kitti_bad");
   const auto file = dir / "poses.txt";
   writeFile(file, "1 0 0 0 0 1 0 0 0 0 1 0\n2 0 0 0 0 1 0 0 0 0 1 0\n");
-  expectInputError([&] { readTrajectory(file); }, {"poses.txt:2", "not orthonormal"});
-  expectInputError([&] { readTrajectory(dir / "absent.txt"); }, {"absent.txt", "does not exist"});
+  test::expectError([&] { readTrajectory(file); }, {"poses.txt:2", "not orthonormal"});
+  test::expectError([&] { readTrajectory(dir / "absent.txt"); }, {"absent.txt", "does not exist"});
   writeFile(file, "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 0\n");
   const auto times = dir / "times.txt";
   writeFile(times, "0.0\n");
   TrajectoryReadOptions options;
   options.kitti_times = times;
-  expectInputError([&] { readTrajectory(file, options); }, {"poses.txt:2", "more poses than"});
+  test::expectError([&] { readTrajectory(file, options); }, {"poses.txt:2", "more poses than"});
   writeFile(times, "0.0\n0.0\n");
-  expectInputError([&] { readTrajectory(file, options); }, {"times.txt:2", "duplicate"});
+  test::expectError([&] { readTrajectory(file, options); }, {"times.txt:2", "duplicate"});
 }
 
 }  // namespace

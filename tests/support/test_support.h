@@ -4,7 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <initializer_list>
 #include <string>
+
+#include "superdyna/core/error.h"
 
 namespace superdyna::test {
 
@@ -28,6 +31,20 @@ class ScratchDir {
  private:
   std::filesystem::path path_;
 };
+
+/// Runs `fn` and expects an exception of type Error whose message contains every fragment.
+template <typename Error = InputError, typename Fn>
+void expectError(Fn fn, std::initializer_list<std::string> fragments) {
+  try {
+    fn();
+    ADD_FAILURE() << "expected an exception";
+  } catch (const Error& e) {
+    for (const auto& fragment : fragments) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos)
+          << "message '" << e.what() << "' lacks '" << fragment << "'";
+    }
+  }
+}
 
 /// Reads a whole file into a string (empty when it cannot be read).
 std::string readFile(const std::filesystem::path& file);
