@@ -1,0 +1,282 @@
+#include "superdyna/features/matcher.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::features {
+
+namespace {
+
+constexpr int kNoDistance = std::numeric_limits<int>::max();
+
+/// Throws unless both sets hold binary descriptors of the same length, one row per keypoint.
+void requireComparableBinary(const FeatureSet& a, const FeatureSet& b, const char* who) {
+  a.validate();
+  b.validate();
+  if (a.descriptor_type != DescriptorType::kBinary ||
+      b.descriptor_type != DescriptorType::kBinary) {
+    throw InputError(fmt::format("{}: only binary descriptors are supported (got {} and {})", who,
+                                 toString(a.descriptor_type), toString(b.descriptor_type)));
+  }
+  if (!a.empty() && !b.empty() && a.descriptorLength() != b.descriptorLength()) {
+    throw InputError(fmt::format("{}: descriptor lengths differ ({} and {} bytes)", who,
+                                 a.descriptorLength(), b.descriptorLength()));
+  }
+}
+
+/// Best and second-best distance over distinct candidates.
+struct BestTwo {
+  int best = kNoDistance;
+  int second = kNoDistance;
+  int index = -1;
+
+  void offer(int distance, int candidate) {
+    if (distance < best) {
+      second = best;
+      best = distance;
+      index = candidate;
+    } else if (distance < second) {
+      second = distance;
+    }
+  }
+  /// Passes the distance bound and best < ratio * second (always when ratio >= 1 or alone).
+  bool accepted(int max_distance, double ratio) const {
+    if (index < 0 || best > max_distance) return false;
+    if (ratio >= 1.0 || second == kNoDistance) return true;
+    return best < ratio * second;
+  }
+};
+
+/// Keeps, for every train index, only the match with the smallest distance (ties: the earlier
+/// match); result ordered by query.
+std::vector<Match> uniqueTrain(const std::vector<Match>& matches, std::size_t train_count) {
+  std::vector<int> owner(train_count, -1);
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    int& slot = owner[static_cast<std::size_t>(matches[k].train)];
+    if (slot < 0 || matches[k].distance < matches[static_cast<std::size_t>(slot)].distance) {
+      slot = static_cast<int>(k);
+    }
+  }
+  std::vector<Match> kept;
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (owner[static_cast<std::size_t>(matches[k].train)] == static_cast<int>(k)) {
+      kept.push_back(matches[k]);
+    }
+  }
+  return kept;
+}
+
+void requireRatio(double ratio) {
+  if (!(ratio > 0.0 && ratio <= 1.0)) {
+    throw OptionError("ratio", fmt::format("must be in (0, 1], got {}", ratio));
+  }
+}
+
+}  // namespace
+
+int hammingDistance(const std::uint8_t* a, const std::uint8_t* b, int bytes) {
+  int distance = 0;
+  int i = 0;
+  for (; i + 8 <= bytes; i += 8) {
+    std::uint64_t wa, wb;
+    std::memcpy(&wa, a + i, sizeof wa);
+    std::memcpy(&wb, b + i, sizeof wb);
+    distance += std::popcount(wa ^ wb);
+  }
+  for (; i < bytes; ++i)
+    distance += std::popcount(static_cast<unsigned>(a[i] ^ b[i]));
+  return distance;
+}
+
+int hammingDistance(const cv::Mat& a, const cv::Mat& b) {
+  if (a.type() != CV_8UC1 || b.type() != CV_8UC1 || a.rows != 1 || b.rows != 1 ||
+      a.cols != b.cols) {
+    throw InputError("hammingDistance: expected two CV_8UC1 rows of equal length");
+  }
+  return hammingDistance(a.ptr<std::uint8_t>(0), b.ptr<std::uint8_t>(0), a.cols);
+}
+
+void OrientationCheckOptions::validate() const {
+  if (bins < 1 || bins > 360) throw OptionError("bins", fmt::format("must be in [1, 360]"));
+  if (keep_bins < 1 || keep_bins > bins) throw OptionError("keep_bins", "must be in [1, bins]");
+  if (!(min_bin_fraction >= 0.0 && min_bin_fraction <= 1.0)) {
+    throw OptionError("min_bin_fraction", "must be in [0, 1]");
+  }
+}
+
+std::vector<Match> filterByOrientation(const std::vector<Match>& matches,
+                                       const std::vector<Keypoint>& query,
+                                       const std::vector<Keypoint>& train,
+                                       const OrientationCheckOptions& options) {
+  options.validate();
+  const double bin_width = 360.0 / options.bins;
+  std::vector<int> bin_of(matches.size(), -1);
+  std::vector<int> counts(static_cast<std::size_t>(options.bins), 0);
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    const float a = query.at(static_cast<std::size_t>(matches[k].query)).angle;
+    const float b = train.at(static_cast<std::size_t>(matches[k].train)).angle;
+    if (a < 0.0f || b < 0.0f) continue;
+    double difference = std::fmod(static_cast<double>(a) - b, 360.0);
+    if (difference < 0.0) difference += 360.0;
+    const int bin = static_cast<int>(std::floor(difference / bin_width + 0.5)) % options.bins;
+    bin_of[k] = bin;
+    ++counts[static_cast<std::size_t>(bin)];
+  }
+  std::vector<int> order(counts.size());
+  for (std::size_t b = 0; b < order.size(); ++b)
+    order[b] = static_cast<int>(b);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return counts[static_cast<std::size_t>(a)] > counts[static_cast<std::size_t>(b)];
+  });
+  std::vector<bool> keep(counts.size(), false);
+  const int top = counts[static_cast<std::size_t>(order.front())];
+  for (int k = 0; k < options.keep_bins; ++k) {
+    const int count = counts[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])];
+    if (count > 0 && (k == 0 || count >= options.min_bin_fraction * top)) {
+      keep[static_cast<std::size_t>(order[static_cast<std::size_t>(k)])] = true;
+    }
+  }
+  std::vector<Match> kept;
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (bin_of[k] >= 0 && keep[static_cast<std::size_t>(bin_of[k])]) kept.push_back(matches[k]);
+  }
+  return kept;
+}
+
+void BruteForceMatchOptions::validate() const {
+  if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  requireRatio(ratio);
+  orientation.validate();
+}
+
+std::vector<Match> matchBruteForce(const FeatureSet& query, const FeatureSet& train,
+                                   const BruteForceMatchOptions& options) {
+  options.validate();
+  requireComparableBinary(query, train, "matchBruteForce");
+  if (query.empty() || train.empty()) return {};
+  const int n = static_cast<int>(query.size()), m = static_cast<int>(train.size());
+  const int bytes = query.descriptorLength();
+  std::vector<BestTwo> rows(static_cast<std::size_t>(n));
+  std::vector<BestTwo> cols(static_cast<std::size_t>(m));
+  for (int i = 0; i < n; ++i) {
+    const std::uint8_t* qi = query.descriptors.ptr<std::uint8_t>(i);
+    for (int j = 0; j < m; ++j) {
+      const int d = hammingDistance(qi, train.descriptors.ptr<std::uint8_t>(j), bytes);
+      rows[static_cast<std::size_t>(i)].offer(d, j);
+      cols[static_cast<std::size_t>(j)].offer(d, i);
+    }
+  }
+  std::vector<Match> matches;
+  for (int i = 0; i < n; ++i) {
+    const BestTwo& row = rows[static_cast<std::size_t>(i)];
+    if (!row.accepted(options.max_distance, options.ratio)) continue;
+    if (options.mutual && cols[static_cast<std::size_t>(row.index)].index != i) continue;
+    matches.push_back({i, row.index, row.best});
+  }
+  if (!options.mutual) matches = uniqueTrain(matches, train.size());
+  if (options.check_orientation) {
+    matches = filterByOrientation(matches, query.keypoints, train.keypoints, options.orientation);
+  }
+  return matches;
+}
+
+KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size image_size,
+                           int cell_size_px)
+    : cell_size_(cell_size_px) {
+  if (cell_size_px <= 0) throw OptionError("cell_size_px", "must be > 0");
+  cols_ = std::max(1, (image_size.width + cell_size_ - 1) / cell_size_);
+  rows_ = std::max(1, (image_size.height + cell_size_ - 1) / cell_size_);
+  cells_.resize(static_cast<std::size_t>(cols_ * rows_));
+  pixels_.reserve(keypoints.size());
+  octaves_.reserve(keypoints.size());
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    const Eigen::Vector2d& p = keypoints[i].pixel;
+    pixels_.push_back(p);
+    octaves_.push_back(keypoints[i].octave);
+    const int c = std::clamp(static_cast<int>(std::floor(p.x() / cell_size_)), 0, cols_ - 1);
+    const int r = std::clamp(static_cast<int>(std::floor(p.y() / cell_size_)), 0, rows_ - 1);
+    cells_[static_cast<std::size_t>(r * cols_ + c)].push_back(static_cast<int>(i));
+  }
+}
+
+std::vector<int> KeypointGrid::within(const Eigen::Vector2d& center, double radius_px,
+                                      int min_octave, int max_octave) const {
+  std::vector<int> found;
+  if (!(radius_px >= 0.0) || !center.allFinite()) return found;
+  const auto cell = [this](double v, int count) {
+    return std::clamp(static_cast<int>(std::floor(v / cell_size_)), 0, count - 1);
+  };
+  const int c0 = cell(center.x() - radius_px, cols_), c1 = cell(center.x() + radius_px, cols_);
+  const int r0 = cell(center.y() - radius_px, rows_), r1 = cell(center.y() + radius_px, rows_);
+  const double radius2 = radius_px * radius_px;
+  for (int r = r0; r <= r1; ++r) {
+    for (int c = c0; c <= c1; ++c) {
+      for (const int i : cells_[static_cast<std::size_t>(r * cols_ + c)]) {
+        const int octave = octaves_[static_cast<std::size_t>(i)];
+        if (octave < min_octave || octave > max_octave) continue;
+        if ((pixels_[static_cast<std::size_t>(i)] - center).squaredNorm() <= radius2) {
+          found.push_back(i);
+        }
+      }
+    }
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
+void ProjectionMatchOptions::validate() const {
+  if (!(radius_px > 0.0)) throw OptionError("radius_px", "must be > 0");
+  if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  requireRatio(ratio);
+  orientation.validate();
+}
+
+std::vector<Match> matchByProjection(const FeatureSet& query,
+                                     const std::vector<Eigen::Vector2d>& predicted,
+                                     const FeatureSet& train, const KeypointGrid& train_grid,
+                                     const ProjectionMatchOptions& options) {
+  options.validate();
+  requireComparableBinary(query, train, "matchByProjection");
+  if (predicted.size() != query.size()) {
+    throw InputError(fmt::format("matchByProjection: {} predicted pixels for {} query features",
+                                 predicted.size(), query.size()));
+  }
+  if (train_grid.size() != train.size()) {
+    throw InputError(
+        fmt::format("matchByProjection: the grid indexes {} keypoints, not the {} "
+                    "train features",
+                    train_grid.size(), train.size()));
+  }
+  const int bytes = query.descriptorLength();
+  std::vector<Match> matches;
+  for (std::size_t i = 0; i < query.size(); ++i) {
+    if (!predicted[i].allFinite()) continue;
+    int min_octave = 0, max_octave = INT_MAX;
+    if (options.max_octave_difference >= 0) {
+      min_octave = query.keypoints[i].octave - options.max_octave_difference;
+      max_octave = query.keypoints[i].octave + options.max_octave_difference;
+    }
+    const std::uint8_t* qi = query.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
+    BestTwo best;
+    for (const int j : train_grid.within(predicted[i], options.radius_px, min_octave, max_octave)) {
+      best.offer(hammingDistance(qi, train.descriptors.ptr<std::uint8_t>(j), bytes), j);
+    }
+    if (best.accepted(options.max_distance, options.ratio)) {
+      matches.push_back({static_cast<int>(i), best.index, best.best});
+    }
+  }
+  matches = uniqueTrain(matches, train.size());
+  if (options.check_orientation) {
+    matches = filterByOrientation(matches, query.keypoints, train.keypoints, options.orientation);
+  }
+  return matches;
+}
+
+}  // namespace superdyna::features

@@ -1,0 +1,375 @@
+#include "superdyna/features/stereo_matcher.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "superdyna/core/error.h"
+#include "superdyna/features/matcher.h"
+
+namespace superdyna::features {
+
+namespace {
+
+constexpr int kNoDistance = std::numeric_limits<int>::max();
+/// Rays closer to parallel than this (1 - cos^2 of their angle) do not triangulate.
+constexpr double kMinParallaxSin2 = 1e-12;
+
+void requireBinaryPair(const FeatureSet& left, const FeatureSet& right, const char* who) {
+  left.validate();
+  right.validate();
+  if (left.descriptor_type != DescriptorType::kBinary ||
+      right.descriptor_type != DescriptorType::kBinary) {
+    throw InputError(fmt::format("{}: only binary descriptors are supported", who));
+  }
+  if (!left.empty() && !right.empty() && left.descriptorLength() != right.descriptorLength()) {
+    throw InputError(fmt::format("{}: descriptor lengths differ ({} and {} bytes)", who,
+                                 left.descriptorLength(), right.descriptorLength()));
+  }
+}
+
+void requireRatio(double ratio) {
+  if (!(ratio > 0.0 && ratio <= 1.0)) {
+    throw OptionError("ratio", fmt::format("must be in (0, 1], got {}", ratio));
+  }
+}
+
+/// Whether two keypoint angles [deg] agree within `tolerance` after removing `offset` (keypoints
+/// without angle always agree).
+bool anglesAgree(float left, float right, double offset, double tolerance) {
+  if (left < 0.0f || right < 0.0f || tolerance >= 180.0) return true;
+  double gap = std::fmod(std::abs(static_cast<double>(right) - left - offset), 360.0);
+  gap = std::min(gap, 360.0 - gap);
+  return gap <= tolerance;
+}
+
+void requireAngleTolerance(double degrees) {
+  if (!(degrees > 0.0 && degrees <= 180.0)) {
+    throw OptionError("max_angle_difference_deg",
+                      fmt::format("must be in (0, 180], got {}", degrees));
+  }
+}
+
+bool passesRatio(int best, int second, double ratio) {
+  return ratio >= 1.0 || second == kNoDistance || best < ratio * second;
+}
+
+/// Keeps the closest match of every right keypoint (ties: the earlier); order preserved.
+template <typename M>
+std::vector<M> uniqueRight(const std::vector<M>& matches, std::size_t right_count) {
+  std::vector<int> owner(right_count, -1);
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    int& slot = owner[static_cast<std::size_t>(matches[k].right)];
+    if (slot < 0 || matches[k].distance < matches[static_cast<std::size_t>(slot)].distance) {
+      slot = static_cast<int>(k);
+    }
+  }
+  std::vector<M> kept;
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (owner[static_cast<std::size_t>(matches[k].right)] == static_cast<int>(k)) {
+      kept.push_back(matches[k]);
+    }
+  }
+  return kept;
+}
+
+/// Bearing of a right keypoint with its normalised image point (valid when z > 0).
+struct RightBearing {
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();  ///< f / f.z: (x, y, 1).
+  bool valid = false;
+};
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------
+// Unrectified stereo
+
+void StereoMatchOptions::validate() const {
+  if (!(max_epipolar_error_px > 0.0)) throw OptionError("max_epipolar_error_px", "must be > 0");
+  if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  requireRatio(ratio);
+  if (max_octave_difference < 0) throw OptionError("max_octave_difference", "must be >= 0");
+  requireAngleTolerance(max_angle_difference_deg);
+  if (!(min_depth_m > 0.0)) throw OptionError("min_depth_m", "must be > 0");
+  if (!(max_depth_m > min_depth_m)) throw OptionError("max_depth_m", "must be > min_depth_m");
+}
+
+StereoMatcher::StereoMatcher(const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+                             const StereoMatchOptions& options)
+    : camera0_(cam0.cameraModel()),
+      camera1_(cam1.cameraModel()),
+      T_c1_c0_(cam1.T_b_c.inverse() * cam0.T_b_c),
+      options_(options) {
+  options_.validate();
+  const Eigen::Matrix3d R = T_c1_c0_.rotation();
+  const Eigen::Vector3d& t = T_c1_c0_.t;
+  if (!(t.norm() > 1e-9)) throw OptionError("cam1", "the stereo baseline is zero");
+  essential_ = hat(t) * R;
+  R_c0_c1_ = R.transpose();
+  c1_in_c0_ = -(R_c0_c1_ * t);
+  focal1_px_ = 0.5 * (camera1_.fx() + camera1_.fy());
+  roll_deg_ = std::atan2(R(1, 0), R(0, 0)) * 180.0 / std::numbers::pi;
+}
+
+double StereoMatcher::epipolarErrorPx(const Eigen::Vector3d& f0, const Eigen::Vector3d& f1) const {
+  const Eigen::Vector3d line = essential_ * f0;
+  const double norm = std::hypot(line.x(), line.y());
+  if (!(f1.z() > 0.0) || norm < 1e-12) return std::numeric_limits<double>::infinity();
+  return std::abs(line.dot(f1 / f1.z())) / norm * focal1_px_;
+}
+
+std::optional<Eigen::Vector3d> StereoMatcher::triangulate(const Eigen::Vector3d& f0,
+                                                          const Eigen::Vector3d& f1) const {
+  // Closest points s * d0 and c + t * d1 of the two rays (cam0 frame).
+  const Eigen::Vector3d d0 = f0.normalized();
+  const Eigen::Vector3d d1 = (R_c0_c1_ * f1).normalized();
+  const double b = d0.dot(d1);
+  const double denominator = 1.0 - b * b;
+  if (denominator < kMinParallaxSin2) return std::nullopt;
+  const double d = d0.dot(c1_in_c0_), e = d1.dot(c1_in_c0_);
+  const double s = (d - b * e) / denominator;
+  const double t = b * s - e;
+  if (!(s > 0.0) || !(t > 0.0)) return std::nullopt;
+  const Eigen::Vector3d midpoint = 0.5 * (s * d0 + c1_in_c0_ + t * d1);
+  return midpoint;
+}
+
+std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
+                                              const FeatureSet& right) const {
+  requireBinaryPair(left, right, "StereoMatcher::match");
+  std::vector<RightBearing> bearings(right.size());
+  for (std::size_t j = 0; j < right.size(); ++j) {
+    const auto f = camera1_.unproject(right.keypoints[j].pixel);
+    if (!f || !(f->z() > 0.0)) continue;
+    bearings[j] = {*f, *f / f->z(), true};
+  }
+  const int bytes = left.descriptorLength();
+  std::vector<StereoMatch> matches;
+  for (std::size_t i = 0; i < left.size(); ++i) {
+    const auto f0 = camera0_.unproject(left.keypoints[i].pixel);
+    if (!f0) continue;
+    const Eigen::Vector3d line = essential_ * *f0;
+    const double line_norm = std::hypot(line.x(), line.y());
+    if (line_norm < 1e-12) continue;
+    const double max_residual = options_.max_epipolar_error_px / focal1_px_ * line_norm;
+    const std::uint8_t* di = left.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
+    const int octave = left.keypoints[i].octave;
+    int best = kNoDistance, second = kNoDistance;
+    StereoMatch candidate;
+    for (std::size_t j = 0; j < right.size(); ++j) {
+      const RightBearing& rb = bearings[j];
+      const Keypoint& candidate_kp = right.keypoints[j];
+      if (!rb.valid || std::abs(candidate_kp.octave - octave) > options_.max_octave_difference ||
+          !anglesAgree(left.keypoints[i].angle, candidate_kp.angle, roll_deg_,
+                       options_.max_angle_difference_deg)) {
+        continue;
+      }
+      const double residual = std::abs(line.dot(rb.x));
+      if (residual > max_residual) continue;
+      const int distance =
+          hammingDistance(di, right.descriptors.ptr<std::uint8_t>(static_cast<int>(j)), bytes);
+      if (distance >= second) continue;  // cannot change the best two
+      const auto p = triangulate(*f0, rb.f);
+      if (!p || p->z() < options_.min_depth_m || p->z() > options_.max_depth_m ||
+          !((T_c1_c0_ * *p).z() > 0.0)) {
+        continue;
+      }
+      if (distance < best) {
+        second = best;
+        best = distance;
+        candidate = {static_cast<int>(i),
+                     static_cast<int>(j),
+                     distance,
+                     residual / line_norm * focal1_px_,
+                     *p,
+                     p->z()};
+      } else {
+        second = distance;
+      }
+    }
+    if (candidate.right >= 0 && best <= options_.max_distance &&
+        passesRatio(best, second, options_.ratio)) {
+      matches.push_back(candidate);
+    }
+  }
+  return uniqueRight(matches, right.size());
+}
+
+// ------------------------------------------------------------------------------------------------
+// Rectified stereo
+
+namespace {
+
+/// Zero-mean window of `image` centred at (x, y), as floats (row-major).
+std::vector<float> zeroMeanWindow(const cv::Mat& image, int x, int y, int half) {
+  std::vector<float> window;
+  window.reserve(static_cast<std::size_t>((2 * half + 1) * (2 * half + 1)));
+  double sum = 0.0;
+  for (int dy = -half; dy <= half; ++dy) {
+    const std::uint8_t* row = image.ptr<std::uint8_t>(y + dy);
+    for (int dx = -half; dx <= half; ++dx) {
+      window.push_back(row[x + dx]);
+      sum += row[x + dx];
+    }
+  }
+  const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
+  for (float& v : window)
+    v -= mean;
+  return window;
+}
+
+float sumAbsoluteDifferences(const std::vector<float>& a, const std::vector<float>& b) {
+  float sad = 0.0f;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    sad += std::abs(a[k] - b[k]);
+  return sad;
+}
+
+/// Sub-pixel offset of the minimum of the parabola through (-1, a), (0, b), (1, c); nullopt when
+/// the parabola is flat or opens downwards, or its minimum lies more than one sample away.
+std::optional<double> parabolaMinimum(double a, double b, double c) {
+  const double curvature = a + c - 2.0 * b;
+  if (!(curvature > 0.0)) return std::nullopt;
+  const double offset = (a - c) / (2.0 * curvature);
+  if (std::abs(offset) > 1.0) return std::nullopt;
+  return offset;
+}
+
+struct Refinement {
+  double u_right;      ///< Refined right column of the left window's centre column [px].
+  double left_column;  ///< Column of the left window's centre [px].
+  float sad;           ///< Mean absolute difference at the best integer offset.
+};
+
+/// SAD search along the row around right column `u_right`, for the left window at (u, v).
+std::optional<Refinement> refineBySad(const cv::Mat& left, const cv::Mat& right,
+                                      const Eigen::Vector2d& left_pixel, double u_right,
+                                      const RectifiedStereoOptions& options) {
+  const int half = options.sad_half_window, search = options.sad_search_px;
+  const int xl = static_cast<int>(std::lround(left_pixel.x()));
+  const int y = static_cast<int>(std::lround(left_pixel.y()));
+  const int xr = static_cast<int>(std::lround(u_right));
+  if (y - half < 0 || y + half >= left.rows || xl - half < 0 || xl + half >= left.cols ||
+      xr - search - half < 0 || xr + search + half >= right.cols) {
+    return std::nullopt;
+  }
+  const std::vector<float> window = zeroMeanWindow(left, xl, y, half);
+  std::vector<float> sads;
+  for (int k = -search; k <= search; ++k)
+    sads.push_back(sumAbsoluteDifferences(window, zeroMeanWindow(right, xr + k, y, half)));
+  const auto best = std::min_element(sads.begin(), sads.end());
+  const long at = best - sads.begin();
+  if (at == 0 || at + 1 == static_cast<long>(sads.size())) return std::nullopt;  // at the edge
+  const auto offset = parabolaMinimum(sads[static_cast<std::size_t>(at - 1)], *best,
+                                      sads[static_cast<std::size_t>(at + 1)]);
+  if (!offset) return std::nullopt;
+  return Refinement{xr + static_cast<double>(at - search) + *offset, static_cast<double>(xl),
+                    *best / static_cast<float>(window.size())};
+}
+
+}  // namespace
+
+void RectifiedStereoOptions::validate() const {
+  if (!(row_tolerance_px >= 0.0)) throw OptionError("row_tolerance_px", "must be >= 0");
+  if (!(level_scale_factor >= 1.0)) throw OptionError("level_scale_factor", "must be >= 1");
+  if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  requireRatio(ratio);
+  if (max_octave_difference < 0) throw OptionError("max_octave_difference", "must be >= 0");
+  requireAngleTolerance(max_angle_difference_deg);
+  if (!(min_depth_m > 0.0)) throw OptionError("min_depth_m", "must be > 0");
+  if (!(max_depth_m > min_depth_m)) throw OptionError("max_depth_m", "must be > min_depth_m");
+  if (sad_half_window < 1) throw OptionError("sad_half_window", "must be >= 1");
+  if (sad_search_px < 1) throw OptionError("sad_search_px", "must be >= 1");
+  if (!(sad_outlier_factor >= 0.0)) throw OptionError("sad_outlier_factor", "must be >= 0");
+}
+
+RectifiedStereoMatcher::RectifiedStereoMatcher(double fx, double baseline_m,
+                                               const RectifiedStereoOptions& options)
+    : fx_(fx), baseline_m_(baseline_m), options_(options) {
+  if (!(fx > 0.0)) throw OptionError("fx", "must be > 0");
+  if (!(baseline_m > 0.0)) throw OptionError("baseline", "must be > 0");
+  options_.validate();
+}
+
+std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& left_image,
+                                                                const cv::Mat& right_image,
+                                                                const FeatureSet& left,
+                                                                const FeatureSet& right) const {
+  requireBinaryPair(left, right, "RectifiedStereoMatcher::match");
+  for (const cv::Mat* image : {&left_image, &right_image}) {
+    if (image->type() != CV_8UC1 || image->size() != left.image_size ||
+        image->size() != right.image_size) {
+      throw InputError(
+          fmt::format("RectifiedStereoMatcher::match: images must be CV_8UC1 of the "
+                      "features' size {}x{}",
+                      left.image_size.width, left.image_size.height));
+    }
+  }
+  const double min_disparity = fx_ * baseline_m_ / options_.max_depth_m;
+  const double max_disparity = fx_ * baseline_m_ / options_.min_depth_m;
+  // Right keypoints sorted by row for the band search.
+  std::vector<int> by_row(right.size());
+  for (std::size_t j = 0; j < by_row.size(); ++j)
+    by_row[j] = static_cast<int>(j);
+  std::stable_sort(by_row.begin(), by_row.end(), [&](int a, int b) {
+    return right.keypoints[static_cast<std::size_t>(a)].pixel.y() <
+           right.keypoints[static_cast<std::size_t>(b)].pixel.y();
+  });
+  const auto row_of = [&](int j) { return right.keypoints[static_cast<std::size_t>(j)].pixel.y(); };
+
+  const int bytes = left.descriptorLength();
+  std::vector<RectifiedStereoMatch> matches;
+  for (std::size_t i = 0; i < left.size(); ++i) {
+    const Keypoint& kp = left.keypoints[i];
+    const double tolerance =
+        options_.row_tolerance_px * std::pow(options_.level_scale_factor, kp.octave);
+    auto it = std::lower_bound(by_row.begin(), by_row.end(), kp.pixel.y() - tolerance,
+                               [&](int j, double v) { return row_of(j) < v; });
+    const std::uint8_t* di = left.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
+    int best = kNoDistance, second = kNoDistance, best_j = -1;
+    for (; it != by_row.end() && row_of(*it) <= kp.pixel.y() + tolerance; ++it) {
+      const Keypoint& candidate = right.keypoints[static_cast<std::size_t>(*it)];
+      const double disparity = kp.pixel.x() - candidate.pixel.x();
+      if (std::abs(candidate.octave - kp.octave) > options_.max_octave_difference ||
+          disparity < min_disparity || disparity > max_disparity ||
+          !anglesAgree(kp.angle, candidate.angle, 0.0, options_.max_angle_difference_deg)) {
+        continue;
+      }
+      const int distance = hammingDistance(di, right.descriptors.ptr<std::uint8_t>(*it), bytes);
+      if (distance < best || (distance == best && *it < best_j)) {
+        second = best;
+        best = distance;
+        best_j = *it;
+      } else if (distance < second) {
+        second = distance;
+      }
+    }
+    if (best_j < 0 || best > options_.max_distance || !passesRatio(best, second, options_.ratio)) {
+      continue;
+    }
+    const auto refined =
+        refineBySad(left_image, right_image, kp.pixel,
+                    right.keypoints[static_cast<std::size_t>(best_j)].pixel.x(), options_);
+    if (!refined) continue;
+    const double disparity = refined->left_column - refined->u_right;
+    if (disparity < min_disparity || disparity > max_disparity || !(disparity > 0.0)) continue;
+    matches.push_back({static_cast<int>(i), best_j, best, refined->u_right, disparity,
+                       fx_ * baseline_m_ / disparity, refined->sad});
+  }
+  matches = uniqueRight(matches, right.size());
+  if (options_.sad_outlier_factor > 0.0 && !matches.empty()) {
+    std::vector<float> sads;
+    for (const auto& m : matches)
+      sads.push_back(m.sad);
+    std::nth_element(sads.begin(), sads.begin() + static_cast<long>(sads.size() / 2), sads.end());
+    const double limit = options_.sad_outlier_factor * sads[sads.size() / 2];
+    std::erase_if(matches, [&](const RectifiedStereoMatch& m) { return m.sad > limit; });
+  }
+  return matches;
+}
+
+}  // namespace superdyna::features

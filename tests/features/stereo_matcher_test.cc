@@ -1,0 +1,448 @@
+#include "superdyna/features/stereo_matcher.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "superdyna/core/error.h"
+#include "superdyna/features/matcher.h"
+#include "superdyna/features/orb_extractor.h"
+#include "superdyna/io/euroc_dataset.h"
+#include "superdyna/sim/renderer.h"
+#include "superdyna/sim/se3_spline.h"
+#include "superdyna/sim/sequence_generator.h"
+#include "support/test_support.h"
+
+namespace superdyna::features {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The q-quantile (0..1) of some values (by copy).
+double quantile(std::vector<double> values, double q) {
+  if (values.empty()) return std::nan("");
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+  return values[k];
+}
+
+double fraction(std::size_t part, std::size_t whole) {
+  return whole == 0 ? 0.0 : static_cast<double>(part) / static_cast<double>(whole);
+}
+
+/// An ideal EuRoC-like pair: cam1 11 cm to the right of cam0, slightly rotated, radtan lens.
+std::pair<io::CameraCalibration, io::CameraCalibration> idealRig() {
+  io::CameraCalibration cam0;
+  cam0.name = "cam0";
+  cam0.width = 752;
+  cam0.height = 480;
+  cam0.rate_hz = 20.0;
+  cam0.fx = 458.0;
+  cam0.fy = 457.0;
+  cam0.cx = 367.0;
+  cam0.cy = 248.0;
+  cam0.distortion_model = DistortionModel::kRadialTangential;
+  cam0.distortion = {-0.28, 0.07, 0.0002, 0.00002};
+  io::CameraCalibration cam1 = cam0;
+  cam1.name = "cam1";
+  cam1.cx = 380.0;
+  const SE3d T_c0_c1(expSO3(Eigen::Vector3d(0.002, -0.01, 0.003)),
+                     Eigen::Vector3d(0.11, 0.001, -0.002));
+  cam1.T_b_c = cam0.T_b_c * T_c0_c1;
+  return {cam0, cam1};
+}
+
+// ------------------------------------------------------------------------------------------------
+// Geometry of the unrectified matcher
+
+TEST(StereoMatcherTest, EpipolarErrorAndTriangulationAreExactForTrueBearings) {
+  const auto [cam0, cam1] = idealRig();
+  const StereoMatcher matcher(cam0, cam1);
+  const SE3d& T_c1_c0 = matcher.T_c1_c0();
+  EXPECT_NEAR((T_c1_c0.inverse().t - Eigen::Vector3d(0.11, 0.001, -0.002)).norm(), 0.0, 1e-12);
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.3, -0.2, 2.0), Eigen::Vector3d(-4.0, 1.0, 25.0),
+        Eigen::Vector3d(0.0, 0.0, 0.5)}) {
+    const Eigen::Vector3d f0 = p.normalized();
+    const Eigen::Vector3d f1 = (T_c1_c0 * p).normalized();
+    EXPECT_NEAR(f1.dot(matcher.essential() * f0), 0.0, 1e-12);
+    EXPECT_LT(matcher.epipolarErrorPx(f0, f1), 1e-9);
+    const auto triangulated = matcher.triangulate(f0, f1);
+    ASSERT_TRUE(triangulated);
+    EXPECT_LT((*triangulated - p).norm(), 1e-9 * p.norm());
+    // A bearing one pixel off the epipolar line: about 1 px of error.
+    const Eigen::Vector3d off = (T_c1_c0 * p + Eigen::Vector3d(0, p.z() / 457.0, 0)).normalized();
+    EXPECT_NEAR(matcher.epipolarErrorPx(f0, off), 1.0, 0.05);
+  }
+  // Rays that meet behind the cameras or never meet.
+  EXPECT_FALSE(matcher.triangulate(Eigen::Vector3d(-0.2, 0, 1).normalized(),
+                                   Eigen::Vector3d(0.2, 0, 1).normalized()));
+  EXPECT_FALSE(matcher.triangulate(Eigen::Vector3d::UnitZ(), T_c1_c0.q * Eigen::Vector3d::UnitZ()));
+}
+
+TEST(StereoMatcherTest, RejectsInvalidOptionsAndRigs) {
+  auto [cam0, cam1] = idealRig();
+  StereoMatchOptions options;
+  options.max_depth_m = 0.05;
+  EXPECT_THROW(StereoMatcher(cam0, cam1, options), OptionError);
+  options = {};
+  options.ratio = 1.5;
+  EXPECT_THROW(StereoMatcher(cam0, cam1, options), OptionError);
+  EXPECT_THROW(StereoMatcher(cam0, cam0), OptionError);  // no baseline
+  EXPECT_THROW(RectifiedStereoMatcher(0.0, 0.1), OptionError);
+  EXPECT_THROW(RectifiedStereoMatcher(400.0, -0.1), OptionError);
+  RectifiedStereoOptions rectified;
+  rectified.sad_half_window = 0;
+  EXPECT_THROW(RectifiedStereoMatcher(400.0, 0.1, rectified), OptionError);
+}
+
+TEST(RectifiedStereoMatcherTest, RecoversAKnownDisparityWithSubPixelAccuracy) {
+  // The right image is the left one shifted left by 9.4 px (a fronto-parallel plane).
+  const cv::Mat big = [] {
+    cv::Mat image(480, 800, CV_8UC1);
+    cv::RNG rng(9);
+    rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), 1.5);
+    cv::normalize(image, image, 0, 255, cv::NORM_MINMAX);
+    return image;
+  }();
+  const double disparity = 9.4;
+  const cv::Mat M = (cv::Mat_<double>(2, 3) << 1, 0, -disparity, 0, 1, 0);
+  cv::Mat left = big(cv::Rect(0, 0, 752, 480)).clone(), right;
+  cv::warpAffine(big, right, M, big.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT_101);
+  right = right(cv::Rect(0, 0, 752, 480)).clone();
+  OrbExtractor extractor;
+  const FeatureSet l = extractor.extract(left);
+  const FeatureSet r = extractor.extract(right);
+  const RectifiedStereoMatcher matcher(400.0, 0.1);
+  const auto matches = matcher.match(left, right, l, r);
+  std::vector<double> errors;
+  for (const auto& m : matches) {
+    errors.push_back(std::abs(m.disparity_px - disparity));
+    EXPECT_NEAR(m.depth_m, 400.0 * 0.1 / m.disparity_px, 1e-9);
+  }
+  std::cout << "rectified, known disparity 9.4 px: " << matches.size() << " matches, median error "
+            << quantile(errors, 0.5) << " px, 90 % below " << quantile(errors, 0.9) << " px\n";
+  EXPECT_GT(matches.size(), 300u);
+  EXPECT_LT(quantile(errors, 0.5), 0.15);
+  EXPECT_LT(quantile(errors, 0.9), 0.5);
+  EXPECT_THROW(matcher.match(left, cv::Mat(), l, r), InputError);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Real data: EuRoC V1_01 (unrectified, radial-tangential lenses)
+
+struct StereoStats {
+  std::size_t matches = 0;
+  std::size_t reprojection_inliers = 0;  ///< Both reprojections within 2 px.
+  std::size_t room_depths = 0;           ///< Depth in [0.5, 10] m.
+  std::vector<double> depths;
+};
+
+/// Reprojection error [px] of a triangulated match in both images (max of the two).
+double reprojectionError(const StereoMatcher& matcher, const StereoMatch& m, const FeatureSet& left,
+                         const FeatureSet& right) {
+  const auto u0 = matcher.camera0().project(m.p_c0);
+  const auto u1 = matcher.camera1().project(matcher.T_c1_c0() * m.p_c0);
+  if (!u0 || !u1) return std::numeric_limits<double>::infinity();
+  return std::max((*u0 - left.keypoints[static_cast<std::size_t>(m.left)].pixel).norm(),
+                  (*u1 - right.keypoints[static_cast<std::size_t>(m.right)].pixel).norm());
+}
+
+TEST(StereoMatcherEurocTest, MatchesFollowTheCalibratedEpipolarGeometry) {
+  SUPERDYNA_REQUIRE_SHARED(root, "data/euroc/V1_01_easy_micro");
+  const io::EurocDataset dataset = io::EurocDataset::open(root);
+  ASSERT_TRUE(dataset.isStereo());
+  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  OrbExtractor extractor;
+  const StereoMatcher matcher(cam0, cam1);
+  StereoStats total;
+  std::size_t frames = 0, brute_force = 0, brute_force_epipolar = 0;
+  std::size_t min_matches = SIZE_MAX;
+  for (std::size_t k = 0; k < dataset.stereoFrames().size(); k += 10, ++frames) {
+    const io::StereoFrameRef& frame = dataset.stereoFrames()[k];
+    const FeatureSet left = extractor.extract(io::loadImage(frame.cam0, cam0));
+    const FeatureSet right = extractor.extract(io::loadImage(frame.cam1, cam1));
+    const std::vector<StereoMatch> matches = matcher.match(left, right);
+    min_matches = std::min(min_matches, matches.size());
+    std::vector<int> used(right.size(), 0);
+    for (const StereoMatch& m : matches) {
+      EXPECT_EQ(++used[static_cast<std::size_t>(m.right)], 1);
+      EXPECT_LE(m.epipolar_error_px, 2.0);
+      EXPECT_GE(m.depth_m, 0.1);
+      EXPECT_LE(m.depth_m, 60.0);
+      ++total.matches;
+      total.reprojection_inliers += reprojectionError(matcher, m, left, right) < 2.0;
+      total.room_depths += m.depth_m >= 0.5 && m.depth_m <= 10.0;
+      total.depths.push_back(m.depth_m);
+    }
+    // Descriptor matching alone, without geometry: how many agree with the calibration?
+    for (const Match& m : matchBruteForce(left, right)) {
+      const auto f0 =
+          matcher.camera0().unproject(left.keypoints[static_cast<std::size_t>(m.query)].pixel);
+      const auto f1 =
+          matcher.camera1().unproject(right.keypoints[static_cast<std::size_t>(m.train)].pixel);
+      ++brute_force;
+      brute_force_epipolar += f0 && f1 && matcher.epipolarErrorPx(*f0, *f1) < 2.0;
+    }
+  }
+  std::cout << "EuRoC V1_01 stereo, " << frames << " frames: " << total.matches << " matches ("
+            << double(total.matches) / frames << " per frame, min " << min_matches << "), "
+            << 100.0 * fraction(total.reprojection_inliers, total.matches)
+            << " % reproject within 2 px into both images, "
+            << 100.0 * fraction(total.room_depths, total.matches)
+            << " % of depths in [0.5, 10] m; depth quantiles 5/50/95 %: "
+            << quantile(total.depths, 0.05) << " / " << quantile(total.depths, 0.5) << " / "
+            << quantile(total.depths, 0.95) << " m\n"
+            << "  geometry-free brute-force matches: " << brute_force << ", "
+            << 100.0 * fraction(brute_force_epipolar, brute_force)
+            << " % within 2 px of the calibrated epipolar curve\n";
+  RecordProperty("euroc_stereo_matches_per_frame", std::to_string(double(total.matches) / frames));
+  EXPECT_GT(min_matches, 200u);
+  EXPECT_GT(fraction(total.reprojection_inliers, total.matches), 0.9);
+  EXPECT_GT(fraction(total.room_depths, total.matches), 0.95);
+  EXPECT_GT(fraction(brute_force_epipolar, brute_force), 0.5);
+}
+
+TEST(StereoMatcherEurocTest, RectifiedPathAgreesWithTheUnrectifiedOne) {
+  SUPERDYNA_REQUIRE_SHARED(root, "data/euroc/V1_01_easy_micro");
+  const io::EurocDataset dataset = io::EurocDataset::open(root);
+  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const StereoMatcher matcher(cam0, cam1);
+  // Rectify with OpenCV (p_c1 = R p_c0 + T).
+  cv::Mat R, T, R0, R1, P0, P1, Q;
+  cv::eigen2cv(matcher.T_c1_c0().rotation(), R);
+  cv::eigen2cv(matcher.T_c1_c0().t, T);
+  cv::stereoRectify(cam0.cameraMatrix(), cam0.distortionCoefficients(), cam1.cameraMatrix(),
+                    cam1.distortionCoefficients(), cam0.imageSize(), R, T, R0, R1, P0, P1, Q,
+                    cv::CALIB_ZERO_DISPARITY, 0.0);
+  cv::Mat map0x, map0y, map1x, map1y;
+  cv::initUndistortRectifyMap(cam0.cameraMatrix(), cam0.distortionCoefficients(), R0, P0,
+                              cam0.imageSize(), CV_32FC1, map0x, map0y);
+  cv::initUndistortRectifyMap(cam1.cameraMatrix(), cam1.distortionCoefficients(), R1, P1,
+                              cam1.imageSize(), CV_32FC1, map1x, map1y);
+  const double fx = P0.at<double>(0, 0), fy = P0.at<double>(1, 1);
+  const double cx = P0.at<double>(0, 2), cy = P0.at<double>(1, 2);
+  const double baseline = -P1.at<double>(0, 3) / P1.at<double>(0, 0);
+  Eigen::Matrix3d R_rect_c0;
+  cv::cv2eigen(R0, R_rect_c0);
+
+  OrbExtractor extractor;
+  const RectifiedStereoMatcher rectified_matcher(fx, baseline);
+  std::size_t rectified_total = 0, compared = 0, frames = 0;
+  std::vector<double> relative;
+  for (std::size_t k = 0; k < dataset.stereoFrames().size(); k += 30, ++frames) {
+    const io::StereoFrameRef& frame = dataset.stereoFrames()[k];
+    const cv::Mat raw0 = io::loadImage(frame.cam0, cam0), raw1 = io::loadImage(frame.cam1, cam1);
+    cv::Mat rect0, rect1;
+    cv::remap(raw0, rect0, map0x, map0y, cv::INTER_LINEAR);
+    cv::remap(raw1, rect1, map1x, map1y, cv::INTER_LINEAR);
+    const FeatureSet l = extractor.extract(rect0), r = extractor.extract(rect1);
+    const auto rect_matches = rectified_matcher.match(rect0, rect1, l, r);
+    rectified_total += rect_matches.size();
+    // Unrectified reference on the raw images, indexed by left pixel.
+    const FeatureSet raw_l = extractor.extract(raw0), raw_r = extractor.extract(raw1);
+    const auto raw_matches = matcher.match(raw_l, raw_r);
+    std::vector<Keypoint> raw_points;
+    for (const StereoMatch& m : raw_matches) {
+      Keypoint kp = raw_l.keypoints[static_cast<std::size_t>(m.left)];
+      kp.response = static_cast<float>(m.depth_m);  // carry the depth along
+      raw_points.push_back(kp);
+    }
+    const KeypointGrid grid(raw_points, raw_l.image_size);
+    for (const auto& m : rect_matches) {
+      const Keypoint& kp = l.keypoints[static_cast<std::size_t>(m.left)];
+      const Eigen::Vector3d p_rect((kp.pixel.x() - cx) / fx * m.depth_m,
+                                   (kp.pixel.y() - cy) / fy * m.depth_m, m.depth_m);
+      const Eigen::Vector3d p_c0 = R_rect_c0.transpose() * p_rect;
+      const auto pixel = matcher.camera0().project(p_c0);
+      if (!pixel) continue;
+      const auto near = grid.within(*pixel, 1.0);
+      if (near.empty()) continue;
+      const double reference = raw_points[static_cast<std::size_t>(near.front())].response;
+      relative.push_back(std::abs(p_c0.z() - reference) / reference);
+      ++compared;
+    }
+  }
+  std::cout << "EuRoC rectified path: " << rectified_total << " matches over " << frames
+            << " frames, " << compared
+            << " at an unrectified match's keypoint; relative depth difference median "
+            << 100.0 * quantile(relative, 0.5) << " %, 90 % below "
+            << 100.0 * quantile(relative, 0.9) << " %\n";
+  EXPECT_GT(rectified_total, frames * 200u);
+  EXPECT_GT(compared, 200u);
+  EXPECT_LT(quantile(relative, 0.5), 0.05);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Synthetic sequence with exact ground truth
+
+sim::SimulationOptions syntheticOptions(const fs::path& out) {
+  sim::SimulationOptions options;
+  options.output_dir = out;
+  options.motion.duration_s = 0.5;
+  options.world.scene = sim::SceneType::kStreet;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.noise = false;
+  options.landmark_count = 0;
+  options.seed = 3;
+  return options;
+}
+
+/// Half-width of the street flight, as sim::generateSequence scales procedural motion [m].
+constexpr double kStreetProceduralExtentM = 25.0;
+
+/// One generated sequence and the ground-truth depth of one of its stereo frames, re-rendered
+/// from the world the generator built (same options, so the same world and images).
+class SyntheticStereoTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new ::superdyna::test::ScratchDir("features_stereo");
+    const sim::SimulationOptions options = syntheticOptions(dir_->path() / "seq");
+    sim::generateSequence(options);
+    dataset_ = new io::EurocDataset(io::EurocDataset::open(options.output_dir));
+    frame_ = dataset_->stereoFrames()[dataset_->stereoFrames().size() / 2];
+
+    const sim::MotionWindow motion = sim::loadMotion(options.motion, kStreetProceduralExtentM);
+    const sim::Se3Spline spline =
+        sim::Se3Spline::fit(motion.body_poses, secondsToNs(options.knot_spacing_s));
+    const CameraModel camera = options.rig.cameraModel();
+    const SE3d T_b_c0 = options.rig.T_b_c0();
+    sim::CameraPath path;
+    path.T_w_c = [&](TimeNs t) { return spline.pose(t) * T_b_c0; };
+    path.range = motion.window;
+    path.horizontal_fov_rad = 2.0 * std::atan(0.5 * camera.width() / camera.fx());
+    sim::WorldOptions world_options = options.world;
+    world_options.seed = options.seed;
+    const sim::World world = sim::buildWorld(world_options, path);
+    const sim::Renderer renderer(camera);
+    const sim::RenderOptions render_options;  // no noise, no blur, unit gain: as generated
+    truth0_ = new sim::RenderResult(renderer.render(world.scene, spline.pose(frame_.t_ns) * T_b_c0,
+                                                    frame_.t_ns, render_options));
+    truth1_ = new sim::RenderResult(renderer.render(
+        world.scene, spline.pose(frame_.t_ns) * options.rig.T_b_c1(), frame_.t_ns, render_options));
+    baseline_m_ = options.rig.baseline_m;
+  }
+  static void TearDownTestSuite() {
+    delete truth0_;
+    delete truth1_;
+    delete dataset_;
+    delete dir_;
+  }
+
+  /// The ground-truth depth of the 3x3 neighbourhood of `pixel` closest to `depth` [m]
+  /// (keypoints sit on corners, often at depth edges).
+  static double groundTruthDepth(const Eigen::Vector2d& pixel, double depth) {
+    const int x = static_cast<int>(std::lround(pixel.x())),
+              y = static_cast<int>(std::lround(pixel.y()));
+    double best = std::numeric_limits<double>::infinity();
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (x + dx < 0 || y + dy < 0 || x + dx >= truth0_->depth.cols ||
+            y + dy >= truth0_->depth.rows)
+          continue;
+        const double d = truth0_->depth.at<float>(y + dy, x + dx);
+        if (std::abs(d - depth) < std::abs(best - depth)) best = d;
+      }
+    }
+    return best;
+  }
+
+  static ::superdyna::test::ScratchDir* dir_;
+  static io::EurocDataset* dataset_;
+  static io::StereoFrameRef frame_;
+  static sim::RenderResult* truth0_;
+  static sim::RenderResult* truth1_;
+  static double baseline_m_;
+};
+
+::superdyna::test::ScratchDir* SyntheticStereoTest::dir_ = nullptr;
+io::EurocDataset* SyntheticStereoTest::dataset_ = nullptr;
+io::StereoFrameRef SyntheticStereoTest::frame_;
+sim::RenderResult* SyntheticStereoTest::truth0_ = nullptr;
+sim::RenderResult* SyntheticStereoTest::truth1_ = nullptr;
+double SyntheticStereoTest::baseline_m_ = 0.0;
+
+TEST_F(SyntheticStereoTest, ReRenderedGroundTruthIsTheGeneratedFrame) {
+  const cv::Mat left = io::loadImage(frame_.cam0, dataset_->cam0Calibration());
+  const cv::Mat right = io::loadImage(frame_.cam1, *dataset_->cam1Calibration());
+  EXPECT_EQ(cv::norm(left, truth0_->image, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(right, truth1_->image, cv::NORM_INF), 0.0);
+}
+
+TEST_F(SyntheticStereoTest, TriangulatedPointsLieOnTheRenderedSurfaces) {
+  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  OrbExtractor extractor;
+  const FeatureSet left = extractor.extract(io::loadImage(frame_.cam0, cam0));
+  const FeatureSet right = extractor.extract(io::loadImage(frame_.cam1, cam1));
+  const StereoMatcher matcher(cam0, cam1);
+  const std::vector<StereoMatch> matches = matcher.match(left, right);
+  std::size_t reprojected = 0, on_surface = 0;
+  std::vector<double> disparity_errors, depths;
+  for (const StereoMatch& m : matches) {
+    const Keypoint& kp = left.keypoints[static_cast<std::size_t>(m.left)];
+    const auto u1 = matcher.camera1().project(matcher.T_c1_c0() * m.p_c0);
+    reprojected +=
+        u1 && (*u1 - right.keypoints[static_cast<std::size_t>(m.right)].pixel).norm() < 1.0;
+    // Depth error as a disparity error [px]: depth noise grows with depth squared.
+    const double truth = groundTruthDepth(kp.pixel, m.depth_m);
+    const double error = std::abs(cam0.fx * baseline_m_ * (1.0 / m.depth_m - 1.0 / truth));
+    disparity_errors.push_back(error);
+    on_surface += error <= std::pow(1.2, kp.octave);
+    depths.push_back(m.depth_m);
+  }
+  std::cout << "synthetic street stereo: " << matches.size() << " matches of " << left.size()
+            << " keypoints; " << 100.0 * fraction(reprojected, matches.size())
+            << " % reproject into cam1 within 1 px; disparity error vs rendered depth median "
+            << quantile(disparity_errors, 0.5) << " px, 90 % below "
+            << quantile(disparity_errors, 0.9) << " px; "
+            << 100.0 * fraction(on_surface, matches.size())
+            << " % within one level-scaled pixel; depths 5/50/95 %: " << quantile(depths, 0.05)
+            << " / " << quantile(depths, 0.5) << " / " << quantile(depths, 0.95) << " m\n";
+  EXPECT_GT(matches.size(), 300u);
+  EXPECT_GT(fraction(reprojected, matches.size()), 0.95);
+  EXPECT_LT(quantile(disparity_errors, 0.5), 0.5);
+  EXPECT_GT(fraction(on_surface, matches.size()), 0.9);
+}
+
+TEST_F(SyntheticStereoTest, RectifiedPathGivesSubPixelDisparities) {
+  // The simulated rig is rectified: same intrinsics, no distortion, cam1 shifted along x.
+  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const cv::Mat left_image = io::loadImage(frame_.cam0, cam0);
+  const cv::Mat right_image = io::loadImage(frame_.cam1, cam1);
+  OrbExtractor extractor;
+  const FeatureSet left = extractor.extract(left_image);
+  const FeatureSet right = extractor.extract(right_image);
+  const RectifiedStereoMatcher matcher(cam0.fx, baseline_m_);
+  const auto matches = matcher.match(left_image, right_image, left, right);
+  std::vector<double> errors;
+  std::size_t within_half = 0;
+  for (const auto& m : matches) {
+    const Keypoint& kp = left.keypoints[static_cast<std::size_t>(m.left)];
+    // The refined disparity belongs to the window centre, the rounded keypoint column.
+    const Eigen::Vector2d centre(std::round(kp.pixel.x()), std::round(kp.pixel.y()));
+    const double truth = groundTruthDepth(centre, m.depth_m);
+    const double error = std::abs(m.disparity_px - cam0.fx * baseline_m_ / truth);
+    errors.push_back(error);
+    within_half += error <= 0.5;
+  }
+  std::cout << "synthetic street, rectified path: " << matches.size()
+            << " matches; disparity error median " << quantile(errors, 0.5) << " px, 90 % below "
+            << quantile(errors, 0.9) << " px, " << 100.0 * fraction(within_half, matches.size())
+            << " % within 0.5 px\n";
+  EXPECT_GT(matches.size(), 300u);
+  EXPECT_LT(quantile(errors, 0.5), 0.2);
+  EXPECT_GT(fraction(within_half, matches.size()), 0.85);
+}
+
+}  // namespace
+}  // namespace superdyna::features
