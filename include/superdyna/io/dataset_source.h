@@ -1,0 +1,67 @@
+#pragma once
+// A dataset as the SLAM pipeline consumes it: one FrameBundle per camera frame, with the images
+// loaded and checked, the IMU samples that cover the interval since the previous frame, and the
+// ground truth at the frame time when the dataset has it. EuRoC (stereo/mono, with or without
+// IMU) and KITTI odometry (stereo/mono, no IMU) folders are supported.
+
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "superdyna/io/calibration.h"
+#include "superdyna/io/euroc_dataset.h"
+
+namespace superdyna::io {
+
+struct FrameBundle {
+  std::size_t index = 0;  ///< 0-based position in the served sequence.
+  TimeNs t_ns = 0;
+  cv::Mat image0;  ///< Left / only camera, CV_8UC1.
+  cv::Mat image1;  ///< Right camera, CV_8UC1; empty in mono.
+  /// IMU samples covering [previous frame time, t_ns]: from the last sample at or before the
+  /// previous frame to the first sample at or after this one (so that integration can
+  /// interpolate at both ends). For the first frame: the samples up to the first one at or
+  /// after t_ns within one IMU period before it. Empty without IMU.
+  std::vector<ImuSample> imu;
+  std::optional<SE3d> T_w_b_gt;  ///< Ground-truth body pose at t_ns (within 1 ms), if any.
+};
+
+enum class DatasetKind { kEuroc, kKitti };
+DatasetKind parseDatasetKind(const std::string& name);  ///< "euroc" | "kitti"
+
+struct DatasetSourceOptions {
+  bool stereo = true;           ///< Serve the second camera (error if the dataset has none).
+  bool inertial = true;         ///< Serve IMU samples (error if the dataset has none).
+  std::size_t first_frame = 0;  ///< Skip this many frames (of those the IMU covers).
+  std::size_t max_frames = 0;   ///< Serve at most this many (0 = all).
+};
+
+/// Frames in time order. Throws InputError (from the readers, or on a missing stream) at open.
+class DatasetSource {
+ public:
+  virtual ~DatasetSource() = default;
+
+  /// The next frame, or nullopt at the end. Image problems throw InputError naming the file.
+  virtual std::optional<FrameBundle> next() = 0;
+  /// Number of frames this source serves in total.
+  virtual std::size_t size() const = 0;
+
+  virtual const CameraCalibration& camera0() const = 0;
+  /// Second camera's calibration; nullopt in mono.
+  virtual const std::optional<CameraCalibration>& camera1() const = 0;
+  /// IMU calibration; nullopt without IMU.
+  virtual const std::optional<ImuCalibration>& imu() const = 0;
+  /// Ground truth of the served time range (body frame; KITTI: left camera), may be empty.
+  virtual Trajectory groundTruth() const = 0;
+  /// Non-fatal findings of the readers.
+  virtual const std::vector<std::string>& warnings() const = 0;
+};
+
+std::unique_ptr<DatasetSource> openDataset(DatasetKind kind, const std::filesystem::path& path,
+                                           const DatasetSourceOptions& options);
+
+}  // namespace superdyna::io

@@ -1,0 +1,197 @@
+#include "superdyna/io/dataset_source.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "superdyna/core/error.h"
+#include "superdyna/io/kitti_dataset.h"
+
+namespace superdyna::io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr TimeNs kGroundTruthToleranceNs = kNsPerMillisecond;
+
+/// The frames to serve after skipping and truncation, as stereo references (cam1 empty in mono).
+std::vector<StereoFrameRef> selectFrames(std::vector<StereoFrameRef> frames,
+                                         const DatasetSourceOptions& options,
+                                         const fs::path& root) {
+  if (options.first_frame >= frames.size()) {
+    throw OptionError("first-frame",
+                      fmt::format("{} has only {} usable frames, cannot skip {}", root.string(),
+                                  frames.size(), options.first_frame));
+  }
+  frames.erase(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(options.first_frame));
+  if (options.max_frames > 0 && frames.size() > options.max_frames)
+    frames.resize(options.max_frames);
+  return frames;
+}
+
+std::vector<StereoFrameRef> asStereoRefs(const std::vector<ImageRef>& mono) {
+  std::vector<StereoFrameRef> frames;
+  frames.reserve(mono.size());
+  for (const ImageRef& image : mono)
+    frames.push_back({image.t_ns, image.path, {}});
+  return frames;
+}
+
+/// IMU samples from the last one at or before t0 to the first one at or after t1.
+std::vector<ImuSample> bracketingImu(const std::vector<ImuSample>& imu, TimeNs t0, TimeNs t1) {
+  const auto by_time = [](const ImuSample& s, TimeNs t) { return s.t_ns < t; };
+  auto first = std::lower_bound(imu.begin(), imu.end(), t0, by_time);
+  if (first != imu.begin() && (first == imu.end() || first->t_ns > t0)) --first;
+  auto last = std::lower_bound(imu.begin(), imu.end(), t1, by_time);
+  if (last != imu.end()) ++last;
+  return {first, last};
+}
+
+class EurocSource : public DatasetSource {
+ public:
+  EurocSource(const fs::path& path, const DatasetSourceOptions& options)
+      : dataset_(EurocDataset::open(path)), options_(options) {
+    if (options.stereo && !dataset_.isStereo()) {
+      throw InputError(InputLocation(dataset_.root() / "cam1"),
+                       "stereo requested but the dataset has no cam1 (use a mono mode)");
+    }
+    if (options.inertial && !dataset_.hasImu()) {
+      throw InputError(InputLocation(dataset_.root() / "imu0"),
+                       "inertial mode requested but the dataset has no imu0");
+    }
+    if (options.stereo) camera1_ = dataset_.cam1Calibration();
+    if (options.inertial) imu_ = dataset_.imuCalibration();
+    frames_ = selectFrames(availableFrames(), options, dataset_.root());
+  }
+
+  std::optional<FrameBundle> next() override {
+    if (next_ >= frames_.size()) return std::nullopt;
+    const StereoFrameRef& ref = frames_[next_];
+    FrameBundle bundle;
+    bundle.index = next_;
+    bundle.t_ns = ref.t_ns;
+    bundle.image0 = loadImage(ref.cam0, dataset_.cam0Calibration());
+    if (options_.stereo) bundle.image1 = loadImage(ref.cam1, *camera1_);
+    if (options_.inertial) {
+      const TimeNs t_prev = next_ == 0 ? ref.t_ns : frames_[next_ - 1].t_ns;
+      bundle.imu = bracketingImu(dataset_.imu(), t_prev, ref.t_ns);
+    }
+    if (const auto gt = dataset_.groundTruthNearest(ref.t_ns, kGroundTruthToleranceNs)) {
+      bundle.T_w_b_gt = gt->T_w_b;
+    }
+    ++next_;
+    return bundle;
+  }
+
+  std::size_t size() const override { return frames_.size(); }
+  const CameraCalibration& camera0() const override { return dataset_.cam0Calibration(); }
+  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
+  const std::optional<ImuCalibration>& imu() const override { return imu_; }
+  const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
+
+  Trajectory groundTruth() const override {
+    Trajectory served;
+    const TimeRange range{frames_.front().t_ns, frames_.back().t_ns};
+    for (const StampedPose& pose : dataset_.groundTruthTrajectory()) {
+      if (pose.t_ns + kGroundTruthToleranceNs >= range.begin &&
+          pose.t_ns <= range.end + kGroundTruthToleranceNs) {
+        served.push_back(pose);
+      }
+    }
+    return served;
+  }
+
+ private:
+  std::vector<StereoFrameRef> availableFrames() const {
+    if (options_.stereo) {
+      return options_.inertial ? dataset_.framesWithImuCoverage() : dataset_.stereoFrames();
+    }
+    return asStereoRefs(options_.inertial ? dataset_.monoFramesWithImuCoverage()
+                                          : dataset_.monoFrames());
+  }
+
+  EurocDataset dataset_;
+  DatasetSourceOptions options_;
+  std::optional<CameraCalibration> camera1_;
+  std::optional<ImuCalibration> imu_;
+  std::vector<StereoFrameRef> frames_;
+  std::size_t next_ = 0;
+};
+
+class KittiSource : public DatasetSource {
+ public:
+  KittiSource(const fs::path& path, const DatasetSourceOptions& options)
+      : dataset_(KittiDataset::open(path)), options_(options) {
+    if (options.inertial) {
+      throw InputError(InputLocation(path), "KITTI odometry has no IMU: use stereo or mono mode");
+    }
+    if (options.stereo && !dataset_.isStereo()) {
+      throw InputError(InputLocation(path),
+                       "stereo requested but the sequence has no right images (use mono)");
+    }
+    if (options.stereo) camera1_ = dataset_.rightCalibration();
+    frames_ =
+        selectFrames(options.stereo ? dataset_.stereoFrames() : asStereoRefs(dataset_.monoFrames()),
+                     options, dataset_.root());
+  }
+
+  std::optional<FrameBundle> next() override {
+    if (next_ >= frames_.size()) return std::nullopt;
+    const StereoFrameRef& ref = frames_[next_];
+    FrameBundle bundle;
+    bundle.index = next_;
+    bundle.t_ns = ref.t_ns;
+    bundle.image0 = loadImage(ref.cam0, dataset_.leftCalibration());
+    if (options_.stereo) bundle.image1 = loadImage(ref.cam1, *camera1_);
+    bundle.T_w_b_gt = groundTruthAt(ref.t_ns);
+    ++next_;
+    return bundle;
+  }
+
+  std::size_t size() const override { return frames_.size(); }
+  const CameraCalibration& camera0() const override { return dataset_.leftCalibration(); }
+  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
+  const std::optional<ImuCalibration>& imu() const override { return no_imu_; }
+  const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
+
+  Trajectory groundTruth() const override {
+    Trajectory served;
+    for (const StereoFrameRef& frame : frames_) {
+      if (const auto pose = groundTruthAt(frame.t_ns)) served.push_back({frame.t_ns, *pose});
+    }
+    return served;
+  }
+
+ private:
+  std::optional<SE3d> groundTruthAt(TimeNs t_ns) const {
+    const Trajectory& gt = dataset_.groundTruth();
+    const auto it = std::lower_bound(gt.begin(), gt.end(), t_ns,
+                                     [](const StampedPose& p, TimeNs t) { return p.t_ns < t; });
+    if (it == gt.end() || it->t_ns != t_ns) return std::nullopt;
+    return it->T_w_x;
+  }
+
+  KittiDataset dataset_;
+  DatasetSourceOptions options_;
+  std::optional<CameraCalibration> camera1_;
+  std::optional<ImuCalibration> no_imu_;
+  std::vector<StereoFrameRef> frames_;
+  std::size_t next_ = 0;
+};
+
+}  // namespace
+
+DatasetKind parseDatasetKind(const std::string& name) {
+  if (name == "euroc") return DatasetKind::kEuroc;
+  if (name == "kitti") return DatasetKind::kKitti;
+  throw OptionError("dataset", fmt::format("unknown dataset kind '{}' (euroc|kitti)", name));
+}
+
+std::unique_ptr<DatasetSource> openDataset(DatasetKind kind, const fs::path& path,
+                                           const DatasetSourceOptions& options) {
+  if (kind == DatasetKind::kKitti) return std::make_unique<KittiSource>(path, options);
+  return std::make_unique<EurocSource>(path, options);
+}
+
+}  // namespace superdyna::io
