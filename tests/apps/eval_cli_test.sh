@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# End-to-end checks of `superdyna eval` and `superdyna demo`:
+# End-to-end checks of `superdyna eval`, `superdyna demo` and `superdyna info`:
 #  1. ATE / RPE from the CLI equal an independent numpy computation (scripts/reference_eval.py)
 #     to 1e-6 relative, for SE(3) and Sim(3) alignment, on a generated flight and (when
 #     ../shared is present) on a real EuRoC ground truth with a simulated drifting estimate;
@@ -60,4 +60,12 @@ expect_failure "is an input file; refusing to overwrite it" \
   "$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/keep.txt" \
   --json "$work/keep.txt"
 cmp -s "$work/keep.txt" "$work/generated/estimate.txt" || { echo "input was modified"; exit 1; }
-echo "eval CLI checks passed"
+# Dataset summary: the real EuRoC excerpt, and a clear error for a folder without mav0/.
+euroc_dir="$shared/data/euroc/V1_01_easy_micro"
+if [ -d "$euroc_dir" ]; then
+  "$superdyna" info --dataset euroc --path "$euroc_dir" | tee "$work/info.txt"
+  grep -q "stereo pairs: 95" "$work/info.txt" || { echo "info lacks the 95 stereo pairs"; exit 1; }
+fi
+mkdir -p "$work/empty"
+expect_failure "cam0" "$superdyna" info --dataset euroc --path "$work/empty"
+echo "CLI checks passed"

@@ -1,0 +1,107 @@
+#include "commands/info_command.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <string>
+
+#include "superdyna/io/euroc_dataset.h"
+#include "superdyna/io/kitti_dataset.h"
+
+namespace superdyna::apps {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string describeRange(const TimeRange& range) {
+  return fmt::format("{} .. {} s ({:.2f} s)", formatNsAsSeconds(range.begin),
+                     formatNsAsSeconds(range.end), range.durationSeconds());
+}
+
+std::string describeCamera(const io::CameraCalibration& c) {
+  std::string coefficients;
+  for (double k : c.distortion)
+    coefficients += fmt::format(" {:.6g}", k);
+  const Eigen::Vector3d t = c.T_b_c.t;
+  return fmt::format(
+      "{}: {}x{} @ {} Hz, fx {:.3f} fy {:.3f} cx {:.3f} cy {:.3f}, {}{}, T_b_c t = ({:.4f}, "
+      "{:.4f}, {:.4f}) m",
+      c.name, c.width, c.height, c.rate_hz, c.fx, c.fy, c.cx, c.cy, toString(c.distortion_model),
+      coefficients, t.x(), t.y(), t.z());
+}
+
+void printEuroc(const fs::path& path) {
+  const io::EurocDataset d = io::EurocDataset::open(path);
+  fmt::print("EuRoC sequence {}\n", d.root().string());
+  fmt::print("  {}\n", describeCamera(d.cam0Calibration()));
+  if (d.cam1Calibration()) fmt::print("  {}\n", describeCamera(*d.cam1Calibration()));
+  fmt::print("  cam0 frames: {}, {}\n", d.monoFrames().size(), describeRange(d.cam0TimeRange()));
+  if (d.isStereo()) fmt::print("  stereo pairs: {}\n", d.stereoFrames().size());
+  if (const auto& imu = d.imuCalibration()) {
+    fmt::print(
+        "  imu0: {} samples, {}; {} Hz, gyro {:.4e} rad/s/sqrt(Hz) (walk {:.4e}), accel "
+        "{:.4e} m/s^2/sqrt(Hz) (walk {:.4e})\n",
+        d.imu().size(), describeRange(*d.imuTimeRange()), imu->rate_hz,
+        imu->gyroscope_noise_density, imu->gyroscope_random_walk, imu->accelerometer_noise_density,
+        imu->accelerometer_random_walk);
+    fmt::print("  stereo pairs the IMU covers: {}\n", d.framesWithImuCoverage().size());
+  }
+  if (d.hasGroundTruth()) {
+    fmt::print("  ground truth: {} states, {}{}\n", d.groundTruth().size(),
+               describeRange(*d.groundTruthTimeRange()),
+               d.groundTruthHasVelocityAndBiases() ? " (pose, velocity, biases)" : " (pose)");
+  }
+  for (const std::string& warning : d.warnings())
+    fmt::print("  warning: {}\n", warning);
+}
+
+void printKitti(const fs::path& path) {
+  const io::KittiDataset d = io::KittiDataset::open(path);
+  fmt::print("KITTI sequence {}\n", d.root().string());
+  fmt::print("  {}\n", describeCamera(d.leftCalibration()));
+  if (const auto baseline = d.baseline()) fmt::print("  stereo baseline: {:.4f} m\n", *baseline);
+  fmt::print("  frames: {} ({}), {}\n", d.size(), d.isStereo() ? "stereo" : "mono",
+             describeRange(d.timeRange()));
+  if (d.hasGroundTruth()) fmt::print("  ground truth: {} poses\n", d.groundTruth().size());
+  for (const std::string& warning : d.warnings())
+    fmt::print("  warning: {}\n", warning);
+}
+
+class InfoCommand : public Command {
+ public:
+  explicit InfoCommand(CLI::App& app) {
+    sub_ = app.add_subcommand(
+        "info", "Read and validate a dataset folder and summarise its streams and calibration");
+    sub_->add_option("--dataset", kind_, "Dataset layout")
+        ->check(CLI::IsMember({"euroc", "kitti"}))
+        ->capture_default_str();
+    sub_->add_option("--path", path_, "Sequence folder (EuRoC: the one holding mav0/)")
+        ->required()
+        ->check(CLI::ExistingDirectory);
+  }
+
+  CLI::App* subcommand() const override { return sub_; }
+
+  int run() override {
+    if (kind_ == "kitti") {
+      printKitti(path_);
+    } else {
+      printEuroc(path_);
+    }
+    return 0;
+  }
+
+ private:
+  CLI::App* sub_ = nullptr;
+  std::string kind_ = "euroc";
+  fs::path path_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> makeInfoCommand(CLI::App& app) {
+  return std::make_unique<InfoCommand>(app);
+}
+
+}  // namespace superdyna::apps
