@@ -30,6 +30,35 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& R) {
   return v * (theta / sin_half);
 }
 
+Eigen::Matrix3d rightJacobianSO3(const Eigen::Vector3d& phi) {
+  const double theta2 = phi.squaredNorm();
+  const Eigen::Matrix3d Phi = hat(phi);
+  double a = 0.0;  // (1 - cos t) / t^2
+  double b = 0.0;  // (t - sin t) / t^3
+  if (theta2 < 1e-8) {
+    a = 0.5 - theta2 / 24.0;
+    b = 1.0 / 6.0 - theta2 / 120.0;
+  } else {
+    const double theta = std::sqrt(theta2);
+    a = (1.0 - std::cos(theta)) / theta2;
+    b = (theta - std::sin(theta)) / (theta2 * theta);
+  }
+  return Eigen::Matrix3d::Identity() - a * Phi + b * Phi * Phi;
+}
+
+Eigen::Matrix3d rightJacobianInverseSO3(const Eigen::Vector3d& phi) {
+  const double theta2 = phi.squaredNorm();
+  const Eigen::Matrix3d Phi = hat(phi);
+  double c = 0.0;  // 1 / t^2 - (1 + cos t) / (2 t sin t)
+  if (theta2 < 1e-8) {
+    c = 1.0 / 12.0 + theta2 / 720.0;
+  } else {
+    const double theta = std::sqrt(theta2);
+    c = 1.0 / theta2 - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+  }
+  return Eigen::Matrix3d::Identity() + 0.5 * Phi + c * Phi * Phi;
+}
+
 double rotationAngle(const Eigen::Matrix3d& R) {
   return logSO3(R).norm();
 }

@@ -60,5 +60,31 @@ TEST(GeometryTest, Sim3InverseAndPoseApplication) {
   EXPECT_LT((moved.rotation() - S.R * pose.rotation()).norm(), 1e-12);
 }
 
+TEST(GeometryTest, RightJacobianMatchesCentralDifferencesOfExpAndLog) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double h = 1e-6;
+  for (double angle : {0.0, 1e-6, 1e-3, 0.5, 2.5}) {
+    const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const Eigen::Vector3d phi = angle * axis;
+    const Eigen::Matrix3d R = expSO3(phi);
+    Eigen::Matrix3d J_exp;  // d log(R^T exp(phi + d)) / dd
+    Eigen::Matrix3d J_log;  // d log(R exp(d)) / dd
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d d = h * Eigen::Vector3d::Unit(k);
+      J_exp.col(k) =
+          (logSO3(R.transpose() * expSO3(phi + d)) - logSO3(R.transpose() * expSO3(phi - d))) /
+          (2.0 * h);
+      J_log.col(k) = (logSO3(R * expSO3(d)) - logSO3(R * expSO3(-d))) / (2.0 * h);
+    }
+    EXPECT_LT((J_exp - rightJacobianSO3(phi)).norm(), 1e-8) << "angle " << angle;
+    EXPECT_LT((J_log - rightJacobianInverseSO3(phi)).norm(), 1e-8) << "angle " << angle;
+    EXPECT_LT(
+        (rightJacobianSO3(phi) * rightJacobianInverseSO3(phi) - Eigen::Matrix3d::Identity()).norm(),
+        1e-12)
+        << "angle " << angle;
+  }
+}
+
 }  // namespace
 }  // namespace superdyna

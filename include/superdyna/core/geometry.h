@@ -16,6 +16,15 @@ Eigen::Matrix3d expSO3(const Eigen::Vector3d& omega);
 /// SO(3) logarithm: the rotation vector of R, accurate near 0 and near pi.
 Eigen::Vector3d logSO3(const Eigen::Matrix3d& R);
 
+/// Right Jacobian of SO(3): expSO3(phi + d) ~= expSO3(phi) * expSO3(rightJacobianSO3(phi) * d) for
+/// a small d [rad]. Jr(phi) = I - (1 - cos t) / t^2 hat(phi) + (t - sin t) / t^3 hat(phi)^2,
+/// t = |phi|; a Taylor series is used near zero.
+Eigen::Matrix3d rightJacobianSO3(const Eigen::Vector3d& phi);
+
+/// Inverse of the right Jacobian: logSO3(expSO3(phi) * expSO3(d)) ~= phi +
+/// rightJacobianInverseSO3(phi) * d. Defined for |phi| < 2 pi; accurate near zero.
+Eigen::Matrix3d rightJacobianInverseSO3(const Eigen::Vector3d& phi);
+
 /// Rotation angle of R in radians, in [0, pi]; numerically stable for small angles.
 double rotationAngle(const Eigen::Matrix3d& R);
 

@@ -1,0 +1,52 @@
+#pragma once
+// A keyframe: the state of the body (pose, velocity, IMU biases) at one image time, its keypoints
+// and descriptors, and which map point each keypoint observes.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "superdyna/core/geometry.h"
+#include "superdyna/core/time.h"
+#include "superdyna/map/map_point.h"
+
+namespace superdyna::map {
+
+/// One keypoint of a keyframe.
+struct KeyFrameKeypoint {
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  ///< Detected (distorted) position [px].
+  /// Undistorted normalised image coordinates (x/z, y/z) in the keypoint's camera: the quantity the
+  /// optimisation works with, so lens distortion stays out of it.
+  Eigen::Vector2d normalized = Eigen::Vector2d::Zero();
+  int octave = 0;       ///< Pyramid level of detection (0 = full resolution).
+  int camera = 0;       ///< Camera of the rig that saw it (index into MapOptions::T_b_c).
+  int class_id = 0;     ///< Semantic class (features::kClass*); 0 = background.
+  int instance_id = 0;  ///< Object instance; 0 = static background.
+  /// Rectified stereo: undistorted normalised x of the match in the right camera. Meaningful only
+  /// when hasStereo().
+  double right_x = 0.0;
+  double depth_m = -1.0;  ///< Stereo depth along the camera z axis [m]; negative = none.
+
+  bool hasStereo() const { return depth_m > 0.0; }
+};
+
+struct KeyFrame {
+  KeyFrameId id = kNoKeyFrame;                    ///< Assigned by Map::addKeyFrame.
+  TimeNs t_ns = 0;                                ///< Image time [ns].
+  SE3d T_w_b;                                     ///< Body (IMU) pose in the world frame.
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Body velocity in the world frame [m/s].
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias [rad/s].
+  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias [m/s^2].
+
+  std::vector<KeyFrameKeypoint> keypoints;
+  cv::Mat descriptors;  ///< Row i describes keypoints[i] (CV_8UC1 or CV_32FC1); may be empty.
+  /// Map point observed by keypoints[i], or kNoMapPoint. Maintained by Map together with
+  /// MapPoint::observations; Map::addKeyFrame sizes it to keypoints.size().
+  std::vector<MapPointId> map_points;
+
+  std::size_t size() const { return keypoints.size(); }
+  /// Number of keypoints associated with a map point.
+  int numTrackedPoints() const;
+};
+
+}  // namespace superdyna::map

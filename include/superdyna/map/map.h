@@ -1,0 +1,206 @@
+#pragma once
+// The map: owns keyframes and map points, keeps the observations consistent in both directions
+// (KeyFrame::map_points <-> MapPoint::observations) and maintains the covisibility graph.
+//
+// Ownership: other code holds ids (KeyFrameId, MapPointId), never pointers into the map. Ids come
+// from counters of this Map (no global state), start at 0 and are never reused.
+//
+// Covisibility: two keyframes are covisible when they observe a common map point; the weight of
+// the edge is the number of such points. The graph is updated incrementally by every observation
+// change (add, erase, replace, erasing keyframes or points), so it always equals the graph one
+// would rebuild from the observations (consistencyError() checks that).
+//
+// Thread safety: one std::mutex per Map guards all its state. Every public member function locks
+// it for its own duration, so single calls are atomic and the map never exposes a half-updated
+// observation. Accessors return copies (or run a read-only callback under the lock, see
+// readKeyFrame()); a sequence of calls is not atomic as a whole.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <map>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "superdyna/core/geometry.h"
+#include "superdyna/map/keyframe.h"
+#include "superdyna/map/map_point.h"
+
+namespace superdyna::map {
+
+struct MapOptions {
+  /// Pose of each camera of the rig in the body frame, indexed by KeyFrameKeypoint::camera.
+  /// Default: a single camera at the body origin.
+  std::vector<SE3d> T_b_c = {SE3d()};
+  /// Scale between consecutive pyramid levels of the feature extractor. Default 1.2 (ORB).
+  double scale_factor = 1.2;
+  /// Number of pyramid levels of the feature extractor. Default 8 (ORB).
+  int num_levels = 8;
+
+  /// Throws OptionError when there is no camera, scale_factor <= 1 or num_levels < 1.
+  void validate() const;
+};
+
+/// A covisible keyframe and the number of map points it shares.
+struct CovisibleKeyFrame {
+  KeyFrameId id = kNoKeyFrame;
+  int weight = 0;
+
+  bool operator==(const CovisibleKeyFrame&) const = default;
+};
+
+class Map {
+ public:
+  /// Validates the options (OptionError).
+  explicit Map(MapOptions options = {});
+  Map(const Map&) = delete;
+  Map& operator=(const Map&) = delete;
+
+  const MapOptions& options() const { return options_; }
+
+  // ---- Structure -------------------------------------------------------------------------------
+
+  /// Adds a keyframe and returns its new id (keyframe.id is overwritten). map_points may be empty
+  /// (no associations) or hold one entry per keypoint: each id of a map point in the map (and not
+  /// bad) becomes an observation; other ids are cleared to kNoMapPoint. Throws
+  /// std::invalid_argument when descriptors has rows but not one per keypoint, map_points has the
+  /// wrong size, or a keypoint names a camera outside options().T_b_c.
+  KeyFrameId addKeyFrame(KeyFrame keyframe);
+
+  /// Adds a map point and returns its new id (point.id is overwritten). Observations are added with
+  /// addObservation(); throws std::invalid_argument when point.observations is not empty.
+  MapPointId addMapPoint(MapPoint point);
+
+  /// Records that keypoint `keypoint_index` of the keyframe observes the point, on both sides, and
+  /// updates the covisibility weights. A point is observed at most once per keyframe and a keypoint
+  /// observes at most one point: an observation of the point in the keyframe at another index,
+  /// and another point at this keypoint, are replaced. Returns false (and changes nothing) when
+  /// either id is unknown, the point is bad or the index is out of range.
+  bool addObservation(MapPointId point_id, KeyFrameId keyframe_id, int keypoint_index);
+
+  /// Removes the observation of the point in the keyframe on both sides; false when there is none.
+  bool eraseObservation(MapPointId point_id, KeyFrameId keyframe_id);
+
+  /// Erases a keyframe with all its observations and covisibility edges. Returns the ids of the
+  /// points that were left without any observation (the caller decides whether to cull them), or
+  /// nullopt when the keyframe is unknown.
+  std::optional<std::vector<MapPointId>> eraseKeyFrame(KeyFrameId id);
+
+  /// Erases a map point with all its observations; false when unknown.
+  bool eraseMapPoint(MapPointId id);
+
+  /// Culls a point in two steps: removes its observations and flags it bad, but keeps it so that
+  /// ids held elsewhere still resolve (and tell it was culled) until eraseBadMapPoints().
+  /// False when unknown.
+  bool setMapPointBad(MapPointId id);
+  /// Erases all bad points; returns how many.
+  int eraseBadMapPoints();
+
+  /// Fuses point `old_id` into `new_id`: every keyframe observing the old point and not the new one
+  /// observes the new one at the same keypoint; the visible/found counters are added; the old
+  /// point is erased. False when the ids are equal or unknown, or the new point is bad.
+  bool replaceMapPoint(MapPointId old_id, MapPointId new_id);
+
+  // ---- State that does not change the structure -------------------------------------------------
+
+  bool setKeyFramePose(KeyFrameId id, const SE3d& T_w_b);
+  /// Velocity v_w [m/s], gyroscope bias bg [rad/s], accelerometer bias ba [m/s^2].
+  bool setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
+                                const Eigen::Vector3d& bg, const Eigen::Vector3d& ba);
+  bool setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w);
+  /// Stores a copy (clone) of one descriptor row.
+  bool setMapPointDescriptor(MapPointId id, const cv::Mat& descriptor);
+  bool increaseVisible(MapPointId id, int count = 1);
+  bool increaseFound(MapPointId id, int count = 1);
+
+  /// Recomputes the point's mean viewing direction (over all observing cameras) and its
+  /// scale-invariance distance range from the oldest observing keyframe: with d the distance [m]
+  /// from that camera and o the keypoint's octave, max = d * scale^o and
+  /// min = max / scale^(num_levels - 1). False when the point is unknown or has no observation.
+  bool updateNormalAndDistances(MapPointId id);
+
+  // ---- Queries
+  // -----------------------------------------------------------------------------------
+
+  std::size_t numKeyFrames() const;
+  /// Including bad points not yet erased.
+  std::size_t numMapPoints() const;
+  bool hasKeyFrame(KeyFrameId id) const;
+  bool hasMapPoint(MapPointId id) const;
+  /// Ids in increasing order.
+  std::vector<KeyFrameId> keyFrameIds() const;
+  /// Ids of the points that are not bad, in increasing order.
+  std::vector<MapPointId> mapPointIds() const;
+
+  /// Copies (cv::Mat members share their pixel data with the map's, which the map never writes).
+  std::optional<KeyFrame> keyFrame(KeyFrameId id) const;
+  std::optional<MapPoint> mapPoint(MapPointId id) const;
+  std::optional<SE3d> keyFramePose(KeyFrameId id) const;
+  std::optional<Eigen::Vector3d> mapPointPosition(MapPointId id) const;
+
+  /// Calls fn(const KeyFrame&) under the map's lock, without copying; false when the id is
+  /// unknown. fn must not call this Map (the mutex is not recursive) and must not keep references.
+  template <typename Fn>
+  bool readKeyFrame(KeyFrameId id, Fn&& fn) const {
+    const std::lock_guard lock(mutex_);
+    const auto it = keyframes_.find(id);
+    if (it == keyframes_.end()) return false;
+    fn(it->second);
+    return true;
+  }
+  /// As readKeyFrame(), for a map point.
+  template <typename Fn>
+  bool readMapPoint(MapPointId id, Fn&& fn) const {
+    const std::lock_guard lock(mutex_);
+    const auto it = points_.find(id);
+    if (it == points_.end()) return false;
+    fn(it->second);
+    return true;
+  }
+
+  // ---- Covisibility graph ----------------------------------------------------------------------
+
+  /// Number of map points observed by both keyframes (0 when unknown or the same keyframe).
+  int covisibilityWeight(KeyFrameId a, KeyFrameId b) const;
+  /// Keyframes sharing at least min_weight points with `id`, by decreasing weight, ties by
+  /// increasing id. Empty when the keyframe is unknown.
+  std::vector<CovisibleKeyFrame> covisibleKeyFrames(KeyFrameId id, int min_weight = 1) const;
+  /// Ids of the (at most) n keyframes sharing most points with `id`, in the order above.
+  std::vector<KeyFrameId> bestCovisibleKeyFrames(KeyFrameId id, int n) const;
+
+  /// Checks every invariant: observations agree on both sides, indices are in range, bad points
+  /// have no observation, and the covisibility graph is symmetric and equals the one rebuilt from
+  /// the observations. Returns "" when all hold, else a description of the first violation.
+  std::string consistencyError() const;
+
+ private:
+  using CovisibilityRow = std::map<KeyFrameId, int>;
+
+  MapPoint* findPoint(MapPointId id);
+  KeyFrame* findKeyFrame(KeyFrameId id);
+  void validateKeyFrame(const KeyFrame& keyframe) const;
+  /// Adds the observation; both exist, the index is valid and both slots are free.
+  void attachObservation(MapPoint& point, KeyFrame& keyframe, int keypoint_index);
+  /// Removes the observation of the point in the keyframe (which must exist).
+  void detachObservation(MapPoint& point, KeyFrame& keyframe);
+  void detachAllObservations(MapPoint& point);
+  void addCovisibility(KeyFrameId a, KeyFrameId b, int delta);
+  std::unordered_map<KeyFrameId, CovisibilityRow> rebuildCovisibility() const;
+  std::string observationError() const;
+  std::string covisibilityError() const;
+
+  MapOptions options_;
+  mutable std::mutex mutex_;
+  std::unordered_map<KeyFrameId, KeyFrame> keyframes_;
+  std::unordered_map<MapPointId, MapPoint> points_;
+  /// covisibility_[a][b] = points shared by a and b (> 0); symmetric; one row per keyframe.
+  std::unordered_map<KeyFrameId, CovisibilityRow> covisibility_;
+  KeyFrameId next_keyframe_id_ = 0;
+  MapPointId next_point_id_ = 0;
+};
+
+}  // namespace superdyna::map

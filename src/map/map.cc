@@ -1,0 +1,483 @@
+#include "superdyna/map/map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::map {
+
+namespace {
+
+/// Covisible keyframes of one row, by decreasing weight then increasing id.
+std::vector<CovisibleKeyFrame> sortedByWeight(const std::map<KeyFrameId, int>& row,
+                                              int min_weight) {
+  std::vector<CovisibleKeyFrame> out;
+  for (const auto& [other, weight] : row) {
+    if (weight >= min_weight) out.push_back({other, weight});
+  }
+  std::stable_sort(
+      out.begin(), out.end(),
+      [](const CovisibleKeyFrame& a, const CovisibleKeyFrame& b) { return a.weight > b.weight; });
+  return out;
+}
+
+template <typename Container>
+std::vector<typename Container::key_type> sortedKeys(const Container& container) {
+  std::vector<typename Container::key_type> keys;
+  keys.reserve(container.size());
+  for (const auto& entry : container)
+    keys.push_back(entry.first);
+  std::sort(keys.begin(), keys.end());
+  return keys;
+}
+
+std::string describePair(MapPointId point_id, KeyFrameId keyframe_id) {
+  return "point " + std::to_string(point_id) + " / keyframe " + std::to_string(keyframe_id);
+}
+
+}  // namespace
+
+int KeyFrame::numTrackedPoints() const {
+  return static_cast<int>(
+      std::count_if(map_points.begin(), map_points.end(),
+                    [](MapPointId point_id) { return point_id != kNoMapPoint; }));
+}
+
+void MapOptions::validate() const {
+  if (T_b_c.empty()) throw OptionError("map.T_b_c", "needs at least one camera");
+  if (!(scale_factor > 1.0) || !std::isfinite(scale_factor)) {
+    throw OptionError("map.scale_factor", "must be a finite number > 1");
+  }
+  if (num_levels < 1) throw OptionError("map.num_levels", "must be >= 1");
+}
+
+Map::Map(MapOptions options) : options_(std::move(options)) {
+  options_.validate();
+}
+
+// ---- Private helpers (called with the mutex held)
+// ------------------------------------------------
+
+MapPoint* Map::findPoint(MapPointId id) {
+  const auto it = points_.find(id);
+  return it == points_.end() ? nullptr : &it->second;
+}
+
+KeyFrame* Map::findKeyFrame(KeyFrameId id) {
+  const auto it = keyframes_.find(id);
+  return it == keyframes_.end() ? nullptr : &it->second;
+}
+
+void Map::validateKeyFrame(const KeyFrame& keyframe) const {
+  const std::size_t n = keyframe.keypoints.size();
+  if (!keyframe.descriptors.empty() && static_cast<std::size_t>(keyframe.descriptors.rows) != n) {
+    throw std::invalid_argument("Map::addKeyFrame: " + std::to_string(keyframe.descriptors.rows) +
+                                " descriptor rows for " + std::to_string(n) + " keypoints");
+  }
+  if (!keyframe.map_points.empty() && keyframe.map_points.size() != n) {
+    throw std::invalid_argument("Map::addKeyFrame: " + std::to_string(keyframe.map_points.size()) +
+                                " map point slots for " + std::to_string(n) + " keypoints");
+  }
+  const int num_cameras = static_cast<int>(options_.T_b_c.size());
+  for (const KeyFrameKeypoint& keypoint : keyframe.keypoints) {
+    if (keypoint.camera < 0 || keypoint.camera >= num_cameras) {
+      throw std::invalid_argument("Map::addKeyFrame: keypoint camera " +
+                                  std::to_string(keypoint.camera) + " outside the " +
+                                  std::to_string(num_cameras) + " cameras of the rig");
+    }
+  }
+}
+
+void Map::addCovisibility(KeyFrameId a, KeyFrameId b, int delta) {
+  for (const auto& [from, to] : {std::pair{a, b}, std::pair{b, a}}) {
+    CovisibilityRow& row = covisibility_[from];
+    const int weight = (row[to] += delta);
+    if (weight <= 0) row.erase(to);
+  }
+}
+
+void Map::attachObservation(MapPoint& point, KeyFrame& keyframe, int keypoint_index) {
+  for (const auto& observation : point.observations) {
+    addCovisibility(keyframe.id, observation.first, +1);
+  }
+  point.observations[keyframe.id] = keypoint_index;
+  keyframe.map_points[static_cast<std::size_t>(keypoint_index)] = point.id;
+}
+
+void Map::detachObservation(MapPoint& point, KeyFrame& keyframe) {
+  const auto it = point.observations.find(keyframe.id);
+  keyframe.map_points[static_cast<std::size_t>(it->second)] = kNoMapPoint;
+  point.observations.erase(it);
+  for (const auto& observation : point.observations) {
+    addCovisibility(keyframe.id, observation.first, -1);
+  }
+}
+
+void Map::detachAllObservations(MapPoint& point) {
+  while (!point.observations.empty()) {
+    detachObservation(point, keyframes_.at(point.observations.begin()->first));
+  }
+}
+
+// ---- Structure ---------------------------------------------------------------------------------
+
+KeyFrameId Map::addKeyFrame(KeyFrame keyframe) {
+  validateKeyFrame(keyframe);
+  const std::lock_guard lock(mutex_);
+  std::vector<MapPointId> requested = std::move(keyframe.map_points);
+  keyframe.map_points.assign(keyframe.keypoints.size(), kNoMapPoint);
+  keyframe.id = next_keyframe_id_++;
+  covisibility_[keyframe.id];
+  KeyFrame& stored = keyframes_.emplace(keyframe.id, std::move(keyframe)).first->second;
+  for (std::size_t i = 0; i < requested.size(); ++i) {
+    MapPoint* point = findPoint(requested[i]);
+    if (point == nullptr || point->bad) continue;
+    // A point requested at two keypoints keeps the last one.
+    if (point->observations.contains(stored.id)) detachObservation(*point, stored);
+    attachObservation(*point, stored, static_cast<int>(i));
+  }
+  return stored.id;
+}
+
+MapPointId Map::addMapPoint(MapPoint point) {
+  if (!point.observations.empty()) {
+    throw std::invalid_argument("Map::addMapPoint: add observations with addObservation()");
+  }
+  const std::lock_guard lock(mutex_);
+  point.id = next_point_id_++;
+  const MapPointId id = point.id;
+  points_.emplace(id, std::move(point));
+  return id;
+}
+
+bool Map::addObservation(MapPointId point_id, KeyFrameId keyframe_id, int keypoint_index) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(point_id);
+  KeyFrame* keyframe = findKeyFrame(keyframe_id);
+  if (point == nullptr || point->bad || keyframe == nullptr || keypoint_index < 0 ||
+      static_cast<std::size_t>(keypoint_index) >= keyframe->keypoints.size()) {
+    return false;
+  }
+  const auto existing = point->observations.find(keyframe_id);
+  if (existing != point->observations.end() && existing->second == keypoint_index) return true;
+  if (existing != point->observations.end()) detachObservation(*point, *keyframe);
+  const MapPointId previous = keyframe->map_points[static_cast<std::size_t>(keypoint_index)];
+  if (previous != kNoMapPoint) detachObservation(points_.at(previous), *keyframe);
+  attachObservation(*point, *keyframe, keypoint_index);
+  return true;
+}
+
+bool Map::eraseObservation(MapPointId point_id, KeyFrameId keyframe_id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(point_id);
+  KeyFrame* keyframe = findKeyFrame(keyframe_id);
+  if (point == nullptr || keyframe == nullptr || !point->observations.contains(keyframe_id)) {
+    return false;
+  }
+  detachObservation(*point, *keyframe);
+  return true;
+}
+
+std::optional<std::vector<MapPointId>> Map::eraseKeyFrame(KeyFrameId id) {
+  const std::lock_guard lock(mutex_);
+  KeyFrame* keyframe = findKeyFrame(id);
+  if (keyframe == nullptr) return std::nullopt;
+  std::vector<MapPointId> orphans;
+  for (const MapPointId point_id : std::vector<MapPointId>(keyframe->map_points)) {
+    if (point_id == kNoMapPoint) continue;
+    MapPoint& point = points_.at(point_id);
+    detachObservation(point, *keyframe);
+    if (point.observations.empty()) orphans.push_back(point_id);
+  }
+  covisibility_.erase(id);
+  keyframes_.erase(id);
+  std::sort(orphans.begin(), orphans.end());
+  return orphans;
+}
+
+bool Map::eraseMapPoint(MapPointId id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  detachAllObservations(*point);
+  points_.erase(id);
+  return true;
+}
+
+bool Map::setMapPointBad(MapPointId id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  detachAllObservations(*point);
+  point->bad = true;
+  return true;
+}
+
+int Map::eraseBadMapPoints() {
+  const std::lock_guard lock(mutex_);
+  return static_cast<int>(
+      std::erase_if(points_, [](const auto& entry) { return entry.second.bad; }));
+}
+
+bool Map::replaceMapPoint(MapPointId old_id, MapPointId new_id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* old_point = findPoint(old_id);
+  MapPoint* new_point = findPoint(new_id);
+  if (old_id == new_id || old_point == nullptr || new_point == nullptr || new_point->bad) {
+    return false;
+  }
+  const std::map<KeyFrameId, int> old_observations = old_point->observations;
+  detachAllObservations(*old_point);
+  for (const auto& [keyframe_id, keypoint_index] : old_observations) {
+    if (new_point->observations.contains(keyframe_id)) continue;
+    attachObservation(*new_point, keyframes_.at(keyframe_id), keypoint_index);
+  }
+  new_point->visible_count += old_point->visible_count;
+  new_point->found_count += old_point->found_count;
+  points_.erase(old_id);
+  return true;
+}
+
+// ---- State -------------------------------------------------------------------------------------
+
+bool Map::setKeyFramePose(KeyFrameId id, const SE3d& T_w_b) {
+  const std::lock_guard lock(mutex_);
+  KeyFrame* keyframe = findKeyFrame(id);
+  if (keyframe == nullptr) return false;
+  keyframe->T_w_b = T_w_b;
+  return true;
+}
+
+bool Map::setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
+                                   const Eigen::Vector3d& bg, const Eigen::Vector3d& ba) {
+  const std::lock_guard lock(mutex_);
+  KeyFrame* keyframe = findKeyFrame(id);
+  if (keyframe == nullptr) return false;
+  keyframe->v_w = v_w;
+  keyframe->bg = bg;
+  keyframe->ba = ba;
+  return true;
+}
+
+bool Map::setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  point->p_w = p_w;
+  return true;
+}
+
+bool Map::setMapPointDescriptor(MapPointId id, const cv::Mat& descriptor) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  point->descriptor = descriptor.clone();
+  return true;
+}
+
+bool Map::increaseVisible(MapPointId id, int count) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  point->visible_count += count;
+  return true;
+}
+
+bool Map::increaseFound(MapPointId id, int count) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  point->found_count += count;
+  return true;
+}
+
+bool Map::updateNormalAndDistances(MapPointId id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr || point->observations.empty()) return false;
+  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
+  for (const auto& [keyframe_id, keypoint_index] : point->observations) {
+    const KeyFrame& keyframe = keyframes_.at(keyframe_id);
+    const int camera = keyframe.keypoints[static_cast<std::size_t>(keypoint_index)].camera;
+    const Eigen::Vector3d center_w = (keyframe.T_w_b * options_.T_b_c[camera]).t;
+    normal_sum += (point->p_w - center_w).normalized();
+  }
+  point->normal_w = normal_sum.normalized();
+
+  const auto& [reference_id, reference_index] = *point->observations.begin();
+  const KeyFrame& reference = keyframes_.at(reference_id);
+  const KeyFrameKeypoint& keypoint = reference.keypoints[static_cast<std::size_t>(reference_index)];
+  const Eigen::Vector3d center_w = (reference.T_w_b * options_.T_b_c[keypoint.camera]).t;
+  const double distance_m = (point->p_w - center_w).norm();
+  point->max_distance_m = distance_m * std::pow(options_.scale_factor, keypoint.octave);
+  point->min_distance_m =
+      point->max_distance_m / std::pow(options_.scale_factor, options_.num_levels - 1);
+  return true;
+}
+
+// ---- Queries -----------------------------------------------------------------------------------
+
+std::size_t Map::numKeyFrames() const {
+  const std::lock_guard lock(mutex_);
+  return keyframes_.size();
+}
+
+std::size_t Map::numMapPoints() const {
+  const std::lock_guard lock(mutex_);
+  return points_.size();
+}
+
+bool Map::hasKeyFrame(KeyFrameId id) const {
+  const std::lock_guard lock(mutex_);
+  return keyframes_.contains(id);
+}
+
+bool Map::hasMapPoint(MapPointId id) const {
+  const std::lock_guard lock(mutex_);
+  return points_.contains(id);
+}
+
+std::vector<KeyFrameId> Map::keyFrameIds() const {
+  const std::lock_guard lock(mutex_);
+  return sortedKeys(keyframes_);
+}
+
+std::vector<MapPointId> Map::mapPointIds() const {
+  const std::lock_guard lock(mutex_);
+  std::vector<MapPointId> ids;
+  for (const auto& [id, point] : points_) {
+    if (!point.bad) ids.push_back(id);
+  }
+  std::sort(ids.begin(), ids.end());
+  return ids;
+}
+
+std::optional<KeyFrame> Map::keyFrame(KeyFrameId id) const {
+  const std::lock_guard lock(mutex_);
+  const auto it = keyframes_.find(id);
+  if (it == keyframes_.end()) return std::nullopt;
+  return it->second;
+}
+
+std::optional<MapPoint> Map::mapPoint(MapPointId id) const {
+  const std::lock_guard lock(mutex_);
+  const auto it = points_.find(id);
+  if (it == points_.end()) return std::nullopt;
+  return it->second;
+}
+
+std::optional<SE3d> Map::keyFramePose(KeyFrameId id) const {
+  const std::lock_guard lock(mutex_);
+  const auto it = keyframes_.find(id);
+  if (it == keyframes_.end()) return std::nullopt;
+  return it->second.T_w_b;
+}
+
+std::optional<Eigen::Vector3d> Map::mapPointPosition(MapPointId id) const {
+  const std::lock_guard lock(mutex_);
+  const auto it = points_.find(id);
+  if (it == points_.end()) return std::nullopt;
+  return it->second.p_w;
+}
+
+// ---- Covisibility ------------------------------------------------------------------------------
+
+int Map::covisibilityWeight(KeyFrameId a, KeyFrameId b) const {
+  const std::lock_guard lock(mutex_);
+  const auto row = covisibility_.find(a);
+  if (row == covisibility_.end()) return 0;
+  const auto entry = row->second.find(b);
+  return entry == row->second.end() ? 0 : entry->second;
+}
+
+std::vector<CovisibleKeyFrame> Map::covisibleKeyFrames(KeyFrameId id, int min_weight) const {
+  const std::lock_guard lock(mutex_);
+  const auto row = covisibility_.find(id);
+  if (row == covisibility_.end()) return {};
+  return sortedByWeight(row->second, min_weight);
+}
+
+std::vector<KeyFrameId> Map::bestCovisibleKeyFrames(KeyFrameId id, int n) const {
+  std::vector<KeyFrameId> best;
+  for (const CovisibleKeyFrame& covisible : covisibleKeyFrames(id)) {
+    if (static_cast<int>(best.size()) >= n) break;
+    best.push_back(covisible.id);
+  }
+  return best;
+}
+
+// ---- Consistency -------------------------------------------------------------------------------
+
+std::unordered_map<KeyFrameId, Map::CovisibilityRow> Map::rebuildCovisibility() const {
+  std::unordered_map<KeyFrameId, CovisibilityRow> graph;
+  for (const auto& entry : keyframes_)
+    graph[entry.first];
+  for (const auto& entry : points_) {
+    const auto& observations = entry.second.observations;
+    for (auto a = observations.begin(); a != observations.end(); ++a) {
+      for (auto b = std::next(a); b != observations.end(); ++b) {
+        ++graph[a->first][b->first];
+        ++graph[b->first][a->first];
+      }
+    }
+  }
+  return graph;
+}
+
+std::string Map::observationError() const {
+  for (const auto& [keyframe_id, keyframe] : keyframes_) {
+    if (keyframe.map_points.size() != keyframe.keypoints.size()) {
+      return "keyframe " + std::to_string(keyframe_id) + ": map_points size differs";
+    }
+    for (std::size_t i = 0; i < keyframe.map_points.size(); ++i) {
+      const MapPointId point_id = keyframe.map_points[i];
+      if (point_id == kNoMapPoint) continue;
+      const auto point = points_.find(point_id);
+      if (point == points_.end()) return describePair(point_id, keyframe_id) + ": point missing";
+      const auto observation = point->second.observations.find(keyframe_id);
+      if (observation == point->second.observations.end() ||
+          observation->second != static_cast<int>(i)) {
+        return describePair(point_id, keyframe_id) + ": keyframe side not mirrored";
+      }
+    }
+  }
+  for (const auto& [point_id, point] : points_) {
+    if (point.bad && !point.observations.empty()) {
+      return "point " + std::to_string(point_id) + ": bad but observed";
+    }
+    for (const auto& [keyframe_id, index] : point.observations) {
+      const auto keyframe = keyframes_.find(keyframe_id);
+      if (keyframe == keyframes_.end()) {
+        return describePair(point_id, keyframe_id) + ": keyframe missing";
+      }
+      const auto& slots = keyframe->second.map_points;
+      if (index < 0 || static_cast<std::size_t>(index) >= slots.size() ||
+          slots[static_cast<std::size_t>(index)] != point_id) {
+        return describePair(point_id, keyframe_id) + ": point side not mirrored";
+      }
+    }
+  }
+  return {};
+}
+
+std::string Map::covisibilityError() const {
+  const auto expected = rebuildCovisibility();
+  if (expected.size() != covisibility_.size()) return "covisibility: row count differs";
+  for (const auto& [keyframe_id, row] : expected) {
+    const auto stored = covisibility_.find(keyframe_id);
+    if (stored == covisibility_.end() || stored->second != row) {
+      return "covisibility: row of keyframe " + std::to_string(keyframe_id) + " differs";
+    }
+  }
+  return {};
+}
+
+std::string Map::consistencyError() const {
+  const std::lock_guard lock(mutex_);
+  std::string error = observationError();
+  return error.empty() ? covisibilityError() : error;
+}
+
+}  // namespace superdyna::map

@@ -1,0 +1,312 @@
+#include "superdyna/map/map.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::map {
+namespace {
+
+KeyFrame makeKeyFrame(int num_keypoints, const SE3d& T_w_b = SE3d()) {
+  KeyFrame keyframe;
+  keyframe.T_w_b = T_w_b;
+  keyframe.keypoints.resize(static_cast<std::size_t>(num_keypoints));
+  keyframe.descriptors = cv::Mat::zeros(num_keypoints, 32, CV_8UC1);
+  return keyframe;
+}
+
+MapPoint makePoint(const Eigen::Vector3d& p_w) {
+  MapPoint point;
+  point.p_w = p_w;
+  return point;
+}
+
+/// Three keyframes of 10 keypoints and 10 points: kf0 sees p0..p5, kf1 p3..p8, kf2 p5..p9, each
+/// point at keypoint index = point id. Shared: (0,1) p3 p4 p5 = 3, (0,2) p5 = 1, (1,2) p5..p8 = 4.
+class ThreeKeyFrameMap : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (int k = 0; k < 3; ++k)
+      kf[k] = map.addKeyFrame(makeKeyFrame(10));
+    for (int i = 0; i < 10; ++i)
+      p[i] = map.addMapPoint(makePoint(Eigen::Vector3d(i, 0, 5)));
+    observe(kf[0], 0, 5);
+    observe(kf[1], 3, 8);
+    observe(kf[2], 5, 9);
+  }
+
+  void observe(KeyFrameId keyframe, int first, int last) {
+    for (int i = first; i <= last; ++i)
+      ASSERT_TRUE(map.addObservation(p[i], keyframe, i));
+  }
+
+  Map map;
+  KeyFrameId kf[3] = {};
+  MapPointId p[10] = {};
+};
+
+TEST_F(ThreeKeyFrameMap, ObservationsAreMirroredAndWeightsCountSharedPoints) {
+  EXPECT_EQ(map.consistencyError(), "");
+  const KeyFrame kf1 = *map.keyFrame(kf[1]);
+  EXPECT_EQ(kf1.numTrackedPoints(), 6);
+  EXPECT_EQ(kf1.map_points[3], p[3]);
+  EXPECT_EQ(kf1.map_points[2], kNoMapPoint);
+  const MapPoint p5 = *map.mapPoint(p[5]);
+  EXPECT_EQ(p5.numObservations(), 3);
+  EXPECT_EQ(p5.observations.at(kf[2]), 5);
+
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[1]), 3);
+  EXPECT_EQ(map.covisibilityWeight(kf[1], kf[0]), 3);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 1);
+  EXPECT_EQ(map.covisibilityWeight(kf[1], kf[2]), 4);
+  EXPECT_EQ(map.covisibleKeyFrames(kf[1]),
+            (std::vector<CovisibleKeyFrame>{{kf[2], 4}, {kf[0], 3}}));
+  EXPECT_EQ(map.bestCovisibleKeyFrames(kf[0], 1), (std::vector<KeyFrameId>{kf[1]}));
+  EXPECT_EQ(map.covisibleKeyFrames(kf[0], 2), (std::vector<CovisibleKeyFrame>{{kf[1], 3}}));
+}
+
+TEST_F(ThreeKeyFrameMap, ErasingObservationsLowersWeightsAndDropsEmptyEdges) {
+  ASSERT_TRUE(map.eraseObservation(p[5], kf[0]));
+  EXPECT_FALSE(map.eraseObservation(p[5], kf[0]));  // already gone
+  EXPECT_EQ(map.keyFrame(kf[0])->map_points[5], kNoMapPoint);
+  EXPECT_FALSE(map.mapPoint(p[5])->observations.contains(kf[0]));
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[1]), 2);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 0);
+  EXPECT_EQ(map.covisibleKeyFrames(kf[2]), (std::vector<CovisibleKeyFrame>{{kf[1], 4}}));
+  EXPECT_EQ(map.covisibilityWeight(kf[1], kf[2]), 4);
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+TEST_F(ThreeKeyFrameMap, ErasingAKeyFrameRemovesItsObservationsAndEdges) {
+  const auto orphans = map.eraseKeyFrame(kf[1]);
+  ASSERT_TRUE(orphans.has_value());
+  EXPECT_TRUE(orphans->empty());  // p3..p8 are all seen by kf0 or kf2 as well
+  EXPECT_FALSE(map.hasKeyFrame(kf[1]));
+  for (int i = 3; i <= 8; ++i)
+    EXPECT_FALSE(map.mapPoint(p[i])->observations.contains(kf[1]));
+  EXPECT_EQ(map.mapPoint(p[6])->numObservations(), 1);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 1);
+  EXPECT_EQ(map.covisibleKeyFrames(kf[0]), (std::vector<CovisibleKeyFrame>{{kf[2], 1}}));
+  EXPECT_EQ(map.consistencyError(), "");
+
+  const auto orphans_of_kf2 = map.eraseKeyFrame(kf[2]);
+  EXPECT_EQ(*orphans_of_kf2, (std::vector<MapPointId>{p[6], p[7], p[8], p[9]}));
+  EXPECT_TRUE(map.covisibleKeyFrames(kf[0]).empty());
+  EXPECT_FALSE(map.eraseKeyFrame(kf[2]).has_value());
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+TEST_F(ThreeKeyFrameMap, ErasingAPointRemovesItFromEveryKeyFrame) {
+  ASSERT_TRUE(map.eraseMapPoint(p[5]));
+  EXPECT_FALSE(map.hasMapPoint(p[5]));
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(map.keyFrame(kf[k])->map_points[5], kNoMapPoint);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[1]), 2);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 0);
+  EXPECT_EQ(map.covisibilityWeight(kf[1], kf[2]), 3);
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+TEST_F(ThreeKeyFrameMap, ObservationReplacesTheOldPointAtAKeypointAndMovesIndices) {
+  // p9 now observed by keypoint 3 of kf0: replaces p3 there (p3 was shared with kf1).
+  ASSERT_TRUE(map.addObservation(p[9], kf[0], 3));
+  EXPECT_EQ(map.keyFrame(kf[0])->map_points[3], p[9]);
+  EXPECT_FALSE(map.mapPoint(p[3])->observations.contains(kf[0]));
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[1]), 2);  // p4, p5
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 2);  // p5, p9
+  // Moving p9 to keypoint 7 of kf0 frees keypoint 3 and keeps the weights.
+  ASSERT_TRUE(map.addObservation(p[9], kf[0], 7));
+  EXPECT_EQ(map.keyFrame(kf[0])->map_points[3], kNoMapPoint);
+  EXPECT_EQ(map.mapPoint(p[9])->observations.at(kf[0]), 7);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 2);
+  EXPECT_EQ(map.consistencyError(), "");
+
+  EXPECT_FALSE(map.addObservation(p[0], kf[0], 10));  // index out of range
+  EXPECT_FALSE(map.addObservation(p[0], 99, 0));      // unknown keyframe
+  EXPECT_FALSE(map.addObservation(99, kf[0], 0));     // unknown point
+}
+
+TEST_F(ThreeKeyFrameMap, ReplacingAPointMergesObservationsAndCounters) {
+  ASSERT_TRUE(map.increaseVisible(p[0], 4));  // visible 5, found 1
+  ASSERT_TRUE(map.increaseFound(p[9], 2));    // visible 1, found 3
+  // p0 (kf0 only) fused into p9 (kf2): kf0 keeps keypoint 0, now observing p9.
+  ASSERT_TRUE(map.replaceMapPoint(p[0], p[9]));
+  EXPECT_FALSE(map.hasMapPoint(p[0]));
+  const MapPoint p9 = *map.mapPoint(p[9]);
+  EXPECT_EQ(p9.observations, (std::map<KeyFrameId, int>{{kf[0], 0}, {kf[2], 9}}));
+  EXPECT_EQ(p9.visible_count, 6);
+  EXPECT_EQ(p9.found_count, 4);
+  EXPECT_DOUBLE_EQ(p9.foundRatio(), 4.0 / 6.0);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 2);
+  // p3 fused into p4 (both seen by kf0 and kf1): the duplicate keypoints lose their point.
+  ASSERT_TRUE(map.replaceMapPoint(p[3], p[4]));
+  EXPECT_EQ(map.keyFrame(kf[0])->map_points[3], kNoMapPoint);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[1]), 2);
+  EXPECT_FALSE(map.replaceMapPoint(p[4], p[4]));
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+TEST_F(ThreeKeyFrameMap, BadPointsLoseObservationsAndAreErasedLater) {
+  ASSERT_TRUE(map.setMapPointBad(p[5]));
+  EXPECT_TRUE(map.hasMapPoint(p[5]));
+  EXPECT_TRUE(map.mapPoint(p[5])->bad);
+  EXPECT_EQ(map.mapPoint(p[5])->numObservations(), 0);
+  EXPECT_EQ(map.covisibilityWeight(kf[0], kf[2]), 0);
+  EXPECT_FALSE(map.addObservation(p[5], kf[0], 5));
+  EXPECT_EQ(map.mapPointIds().size(), 9u);
+  EXPECT_EQ(map.consistencyError(), "");
+  EXPECT_EQ(map.eraseBadMapPoints(), 1);
+  EXPECT_FALSE(map.hasMapPoint(p[5]));
+  EXPECT_EQ(map.numMapPoints(), 9u);
+}
+
+TEST(MapTest, AddingAKeyFrameWithAssociationsCreatesObservations) {
+  Map map;
+  const MapPointId a = map.addMapPoint(makePoint({0, 0, 1}));
+  const MapPointId b = map.addMapPoint(makePoint({0, 0, 2}));
+  const KeyFrameId first = map.addKeyFrame(makeKeyFrame(4));
+  ASSERT_TRUE(map.addObservation(a, first, 0));
+  ASSERT_TRUE(map.addObservation(b, first, 1));
+  ASSERT_TRUE(map.eraseMapPoint(b));
+
+  KeyFrame second = makeKeyFrame(4);
+  second.map_points = {kNoMapPoint, a, b, 12345};  // b was erased, 12345 never existed
+  const KeyFrameId id = map.addKeyFrame(second);
+  const KeyFrame stored = *map.keyFrame(id);
+  EXPECT_EQ(stored.map_points, (std::vector<MapPointId>{kNoMapPoint, a, kNoMapPoint, kNoMapPoint}));
+  EXPECT_EQ(map.mapPoint(a)->observations.at(id), 1);
+  EXPECT_EQ(map.covisibilityWeight(first, id), 1);
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+TEST(MapTest, RejectsMalformedInputs) {
+  Map map;
+  KeyFrame keyframe = makeKeyFrame(3);
+  keyframe.descriptors = cv::Mat::zeros(2, 32, CV_8UC1);
+  EXPECT_THROW(map.addKeyFrame(keyframe), std::invalid_argument);
+  keyframe = makeKeyFrame(3);
+  keyframe.map_points = {kNoMapPoint};
+  EXPECT_THROW(map.addKeyFrame(keyframe), std::invalid_argument);
+  keyframe = makeKeyFrame(3);
+  keyframe.keypoints[1].camera = 1;  // the default rig has one camera
+  EXPECT_THROW(map.addKeyFrame(keyframe), std::invalid_argument);
+  MapPoint point;
+  point.observations[0] = 0;
+  EXPECT_THROW(map.addMapPoint(point), std::invalid_argument);
+
+  MapOptions options;
+  options.scale_factor = 1.0;
+  EXPECT_THROW(Map{options}, OptionError);
+  options = {};
+  options.T_b_c.clear();
+  EXPECT_THROW(Map{options}, OptionError);
+}
+
+TEST(MapTest, TwoMapsCountIdsIndependently) {
+  Map first, second;
+  EXPECT_EQ(first.addKeyFrame(makeKeyFrame(1)), 0);
+  EXPECT_EQ(first.addKeyFrame(makeKeyFrame(1)), 1);
+  EXPECT_EQ(second.addKeyFrame(makeKeyFrame(1)), 0);
+  EXPECT_EQ(first.addMapPoint(makePoint({0, 0, 1})), 0);
+  EXPECT_EQ(second.addMapPoint(makePoint({0, 0, 1})), 0);
+  EXPECT_EQ(first.addMapPoint(makePoint({0, 0, 1})), 1);
+}
+
+TEST(MapTest, NormalAndDistancesFollowTheObservingCameras) {
+  MapOptions options;
+  options.T_b_c = {SE3d(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.1, 0, 0))};
+  Map map(options);
+  // Camera centres at (0.1, 0, 0) and (4.1, 0, 0); the point at (2.1, 0, 2): rays at +-45 deg.
+  KeyFrame left = makeKeyFrame(2);
+  left.keypoints[1].octave = 2;
+  const KeyFrameId a = map.addKeyFrame(left);
+  const KeyFrameId b =
+      map.addKeyFrame(makeKeyFrame(2, SE3d(Eigen::Matrix3d::Identity(), {4, 0, 0})));
+  const MapPointId point = map.addMapPoint(makePoint({2.1, 0, 2}));
+  EXPECT_FALSE(map.updateNormalAndDistances(point));  // no observation yet
+  ASSERT_TRUE(map.addObservation(point, a, 1));
+  ASSERT_TRUE(map.addObservation(point, b, 0));
+  ASSERT_TRUE(map.updateNormalAndDistances(point));
+
+  const MapPoint stored = *map.mapPoint(point);
+  EXPECT_LT((stored.normal_w - Eigen::Vector3d(0, 0, 1)).norm(), 1e-12);
+  const double distance = std::sqrt(8.0);  // from the oldest keyframe a
+  EXPECT_NEAR(stored.max_distance_m, distance * 1.2 * 1.2, 1e-12);
+  EXPECT_NEAR(stored.min_distance_m, distance * 1.2 * 1.2 / std::pow(1.2, 7), 1e-12);
+}
+
+TEST(MapTest, RandomEditsKeepTheCovisibilityGraphEqualToARebuild) {
+  Map map;
+  std::mt19937 rng(42);
+  std::vector<KeyFrameId> keyframes;
+  std::vector<MapPointId> points;
+  for (int i = 0; i < 8; ++i)
+    keyframes.push_back(map.addKeyFrame(makeKeyFrame(30)));
+  for (int i = 0; i < 60; ++i)
+    points.push_back(map.addMapPoint(makePoint({0, 0, 1})));
+  const auto pick = [&rng](const auto& ids) {
+    return ids[std::uniform_int_distribution<std::size_t>(0, ids.size() - 1)(rng)];
+  };
+  std::uniform_int_distribution<int> operation(0, 99);
+  std::uniform_int_distribution<int> keypoint(0, 29);
+  for (int step = 0; step < 3000; ++step) {
+    const int op = operation(rng);
+    if (op < 60) {
+      map.addObservation(pick(points), pick(keyframes), keypoint(rng));
+    } else if (op < 85) {
+      map.eraseObservation(pick(points), pick(keyframes));
+    } else if (op < 90) {
+      map.replaceMapPoint(pick(points), pick(points));
+    } else if (op < 94) {
+      map.eraseKeyFrame(pick(keyframes));
+    } else if (op < 97) {
+      map.eraseMapPoint(pick(points));
+    } else {
+      map.setMapPointBad(pick(points));
+    }
+    // Refill what was erased so the graph stays busy.
+    if (map.numKeyFrames() < 8) keyframes.push_back(map.addKeyFrame(makeKeyFrame(30)));
+    if (map.mapPointIds().size() < 60) points.push_back(map.addMapPoint(makePoint({0, 0, 1})));
+    ASSERT_EQ(map.consistencyError(), "") << "after step " << step;
+  }
+  int edges = 0;
+  for (KeyFrameId id : map.keyFrameIds())
+    edges += static_cast<int>(map.covisibleKeyFrames(id).size());
+  EXPECT_GT(edges, 0);
+}
+
+TEST(MapTest, ConcurrentObservationChangesStayConsistent) {
+  Map map;
+  std::vector<KeyFrameId> keyframes;
+  std::vector<MapPointId> points;
+  for (int i = 0; i < 4; ++i)
+    keyframes.push_back(map.addKeyFrame(makeKeyFrame(200)));
+  for (int i = 0; i < 200; ++i)
+    points.push_back(map.addMapPoint(makePoint({0, 0, 1})));
+  // Each thread attaches every point to its own two keyframes (same keypoint index).
+  const auto attach = [&](int first_keyframe) {
+    for (int i = 0; i < 200; ++i) {
+      for (int k = first_keyframe; k < first_keyframe + 2; ++k) {
+        map.addObservation(points[static_cast<std::size_t>(i)],
+                           keyframes[static_cast<std::size_t>(k)], i);
+      }
+    }
+  };
+  std::thread first(attach, 0), second(attach, 2);
+  first.join();
+  second.join();
+  EXPECT_EQ(map.consistencyError(), "");
+  for (std::size_t a = 0; a < 4; ++a) {
+    for (std::size_t b = a + 1; b < 4; ++b) {
+      EXPECT_EQ(map.covisibilityWeight(keyframes[a], keyframes[b]), 200);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace superdyna::map
