@@ -48,10 +48,43 @@ std::vector<ImuSample> bracketingImu(const std::vector<ImuSample>& imu, TimeNs t
   return {first, last};
 }
 
-class EurocSource : public DatasetSource {
+/// A source serving a fixed list of frames; the dataset-specific part adds IMU and ground truth.
+class FrameListSource : public DatasetSource {
+ public:
+  std::optional<FrameBundle> next() override {
+    if (next_ >= frames_.size()) return std::nullopt;
+    const StereoFrameRef& ref = frames_[next_];
+    FrameBundle bundle;
+    bundle.index = next_;
+    bundle.t_ns = ref.t_ns;
+    bundle.image0 = loadImage(ref.cam0, camera0());
+    if (options_.stereo) bundle.image1 = loadImage(ref.cam1, *camera1_);
+    addMeasurements(next_, &bundle);
+    ++next_;
+    return bundle;
+  }
+
+  std::size_t size() const override { return frames_.size(); }
+  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
+
+ protected:
+  explicit FrameListSource(const DatasetSourceOptions& options) : options_(options) {}
+
+  /// Adds the IMU samples and ground truth of frame `index` to its bundle.
+  virtual void addMeasurements(std::size_t index, FrameBundle* bundle) const = 0;
+
+  DatasetSourceOptions options_;
+  std::optional<CameraCalibration> camera1_;
+  std::vector<StereoFrameRef> frames_;
+
+ private:
+  std::size_t next_ = 0;
+};
+
+class EurocSource : public FrameListSource {
  public:
   EurocSource(const fs::path& path, const DatasetSourceOptions& options)
-      : dataset_(EurocDataset::open(path)), options_(options) {
+      : FrameListSource(options), dataset_(EurocDataset::open(path)) {
     if (options.stereo && !dataset_.isStereo()) {
       throw InputError(InputLocation(dataset_.root() / "cam1"),
                        "stereo requested but the dataset has no cam1 (use a mono mode)");
@@ -65,28 +98,7 @@ class EurocSource : public DatasetSource {
     frames_ = selectFrames(availableFrames(), options, dataset_.root());
   }
 
-  std::optional<FrameBundle> next() override {
-    if (next_ >= frames_.size()) return std::nullopt;
-    const StereoFrameRef& ref = frames_[next_];
-    FrameBundle bundle;
-    bundle.index = next_;
-    bundle.t_ns = ref.t_ns;
-    bundle.image0 = loadImage(ref.cam0, dataset_.cam0Calibration());
-    if (options_.stereo) bundle.image1 = loadImage(ref.cam1, *camera1_);
-    if (options_.inertial) {
-      const TimeNs t_prev = next_ == 0 ? ref.t_ns : frames_[next_ - 1].t_ns;
-      bundle.imu = bracketingImu(dataset_.imu(), t_prev, ref.t_ns);
-    }
-    if (const auto gt = dataset_.groundTruthNearest(ref.t_ns, kGroundTruthToleranceNs)) {
-      bundle.T_w_b_gt = gt->T_w_b;
-    }
-    ++next_;
-    return bundle;
-  }
-
-  std::size_t size() const override { return frames_.size(); }
   const CameraCalibration& camera0() const override { return dataset_.cam0Calibration(); }
-  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
   const std::optional<ImuCalibration>& imu() const override { return imu_; }
   const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
 
@@ -103,6 +115,16 @@ class EurocSource : public DatasetSource {
   }
 
  private:
+  void addMeasurements(std::size_t index, FrameBundle* bundle) const override {
+    if (options_.inertial) {
+      const TimeNs t_prev = index == 0 ? bundle->t_ns : frames_[index - 1].t_ns;
+      bundle->imu = bracketingImu(dataset_.imu(), t_prev, bundle->t_ns);
+    }
+    if (const auto gt = dataset_.groundTruthNearest(bundle->t_ns, kGroundTruthToleranceNs)) {
+      bundle->T_w_b_gt = gt->T_w_b;
+    }
+  }
+
   std::vector<StereoFrameRef> availableFrames() const {
     if (options_.stereo) {
       return options_.inertial ? dataset_.framesWithImuCoverage() : dataset_.stereoFrames();
@@ -112,17 +134,13 @@ class EurocSource : public DatasetSource {
   }
 
   EurocDataset dataset_;
-  DatasetSourceOptions options_;
-  std::optional<CameraCalibration> camera1_;
   std::optional<ImuCalibration> imu_;
-  std::vector<StereoFrameRef> frames_;
-  std::size_t next_ = 0;
 };
 
-class KittiSource : public DatasetSource {
+class KittiSource : public FrameListSource {
  public:
   KittiSource(const fs::path& path, const DatasetSourceOptions& options)
-      : dataset_(KittiDataset::open(path)), options_(options) {
+      : FrameListSource(options), dataset_(KittiDataset::open(path)) {
     if (options.inertial) {
       throw InputError(InputLocation(path), "KITTI odometry has no IMU: use stereo or mono mode");
     }
@@ -136,22 +154,7 @@ class KittiSource : public DatasetSource {
                      options, dataset_.root());
   }
 
-  std::optional<FrameBundle> next() override {
-    if (next_ >= frames_.size()) return std::nullopt;
-    const StereoFrameRef& ref = frames_[next_];
-    FrameBundle bundle;
-    bundle.index = next_;
-    bundle.t_ns = ref.t_ns;
-    bundle.image0 = loadImage(ref.cam0, dataset_.leftCalibration());
-    if (options_.stereo) bundle.image1 = loadImage(ref.cam1, *camera1_);
-    bundle.T_w_b_gt = groundTruthAt(ref.t_ns);
-    ++next_;
-    return bundle;
-  }
-
-  std::size_t size() const override { return frames_.size(); }
   const CameraCalibration& camera0() const override { return dataset_.leftCalibration(); }
-  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
   const std::optional<ImuCalibration>& imu() const override { return no_imu_; }
   const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
 
@@ -164,6 +167,10 @@ class KittiSource : public DatasetSource {
   }
 
  private:
+  void addMeasurements(std::size_t /*index*/, FrameBundle* bundle) const override {
+    bundle->T_w_b_gt = groundTruthAt(bundle->t_ns);
+  }
+
   std::optional<SE3d> groundTruthAt(TimeNs t_ns) const {
     const Trajectory& gt = dataset_.groundTruth();
     const auto it = std::lower_bound(gt.begin(), gt.end(), t_ns,
@@ -173,11 +180,7 @@ class KittiSource : public DatasetSource {
   }
 
   KittiDataset dataset_;
-  DatasetSourceOptions options_;
-  std::optional<CameraCalibration> camera1_;
   std::optional<ImuCalibration> no_imu_;
-  std::vector<StereoFrameRef> frames_;
-  std::size_t next_ = 0;
 };
 
 }  // namespace
