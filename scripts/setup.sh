@@ -17,7 +17,7 @@ packages=(
   libeigen3-dev libopencv-dev libceres-dev libyaml-cpp-dev libcli11-dev
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev libboost-math-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  clang-format python3 python3-numpy
+  clang-format python3 python3-numpy python3-onnx
 )
 
 missing_packages() {
@@ -66,5 +66,6 @@ configure_and_build() {
 }
 
 install_dependencies
+bash "$repo_dir/scripts/install_onnxruntime.sh"  # not packaged by Debian: see the script
 configure_and_build
 echo "[setup] done: $build_dir/bin/superdyna"

@@ -1,0 +1,104 @@
+#pragma once
+// The one wrapper around ONNX Runtime (C++ API, CPU): loads a model file into a session with the
+// project's settings, checks it against the signature the caller expects (tensor_spec.h), runs it
+// on float tensors and times every run. ONNX Runtime stays behind this header: callers include
+// neither its headers nor link it directly.
+//
+// Errors: a missing or unloadable model file, a model that does not fit the signature and an
+// input shape that does not fit it throw InputError naming the model file and the tensor;
+// invalid options throw OptionError; a failure inside ONNX Runtime during a run throws InputError
+// with ONNX Runtime's message and the input shapes.
+
+#include <cstdint>
+#include <filesystem>
+#include <initializer_list>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "superdyna/inference/tensor_spec.h"
+
+namespace superdyna::inference {
+
+/// ONNX Runtime's graph optimisation levels.
+enum class GraphOptimization { kDisabled, kBasic, kExtended, kAll };
+
+struct OnnxModelOptions {
+  /// Threads of one operator (ONNX Runtime's intra-op pool), >= 1. Runs are deterministic for a
+  /// given count.
+  int intra_op_threads = 2;
+  GraphOptimization optimization = GraphOptimization::kAll;  ///< ORT_ENABLE_ALL by default.
+  /// Whether idle intra-op threads spin (lower latency, but they burn CPU that other pipeline
+  /// stages could use). ONNX Runtime's default is to spin.
+  bool allow_spinning = true;
+
+  /// Throws OptionError naming the first invalid field.
+  void validate() const;
+};
+
+/// A read-only view of a dense float32 tensor in row-major (C) order.
+struct TensorView {
+  const float* data = nullptr;
+  std::vector<std::int64_t> shape;
+};
+
+/// A dense float32 tensor in row-major (C) order, owning its data.
+struct Tensor {
+  std::vector<std::int64_t> shape;
+  std::vector<float> data;
+
+  std::int64_t dim(std::size_t i) const { return shape.at(i); }
+  /// Pointer to element [index..., 0, ...] of the leading dimensions given.
+  const float* at(std::initializer_list<std::int64_t> index) const;
+};
+
+/// Product of the dimensions (1 for a scalar); throws InputError for a negative dimension.
+std::size_t elementCount(const std::vector<std::int64_t>& shape);
+
+class OnnxModel {
+ public:
+  /// Loads `file` and checks it against `expected`: every model input must be matched by one
+  /// expected input (by name, or by position for unnamed specs) and every expected output must
+  /// exist; ranks, fixed dimensions, declared multiples and element types must agree. Throws
+  /// InputError ("model file '...' not found" for a missing file; "<file>: output 'desc'
+  /// missing; the model has outputs ..." etc.) or OptionError.
+  OnnxModel(const std::filesystem::path& file, ModelSignature expected,
+            const OnnxModelOptions& options = {});
+  ~OnnxModel();
+  OnnxModel(OnnxModel&&) noexcept;
+  OnnxModel& operator=(OnnxModel&&) noexcept;
+  OnnxModel(const OnnxModel&) = delete;
+  OnnxModel& operator=(const OnnxModel&) = delete;
+
+  /// Runs the model: `inputs` in the order of signature().inputs, outputs in the order of
+  /// signature().outputs. Input and output shapes are checked against the signature (InputError
+  /// naming the tensor). Each call is timed (lastRunMs(), meanRunMs()).
+  std::vector<Tensor> run(const std::vector<TensorView>& inputs);
+
+  /// Runs the model `runs` times on zero-filled inputs of the given shapes without counting the
+  /// runs in the timing: ONNX Runtime allocates and plans on the first run of a shape.
+  void warmUp(const std::vector<std::vector<std::int64_t>>& input_shapes, int runs = 1);
+
+  const std::filesystem::path& file() const;
+  const ModelSignature& signature() const;
+  const OnnxModelOptions& options() const;
+  /// The inputs and outputs as the model declares them, in the model's order.
+  const std::vector<TensorInfo>& modelInputs() const;
+  const std::vector<TensorInfo>& modelOutputs() const;
+  /// A value of the model's custom metadata (onnx metadata_props), if present.
+  std::optional<std::string> metadata(const std::string& key) const;
+
+  /// Duration of the last run() [ms] (0 before the first).
+  double lastRunMs() const;
+  /// Mean duration of all run() calls [ms] (0 before the first).
+  double meanRunMs() const;
+  /// Number of timed run() calls.
+  int runCount() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace superdyna::inference

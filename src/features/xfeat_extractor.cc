@@ -1,0 +1,157 @@
+#include "superdyna/features/xfeat_extractor.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+
+#include "superdyna/core/error.h"
+#include "superdyna/inference/model_files.h"
+
+namespace superdyna::features {
+
+namespace {
+
+constexpr int kStride = 8;         // Cell side of the network's 1/8 maps.
+constexpr int kSizeMultiple = 32;  // XFeat's input sides must be multiples of 32.
+constexpr int kDescriptorSize = 64;
+
+inference::OnnxModel loadModel(const XFeatOptions& options) {
+  options.validate();
+  return inference::OnnxModel(inference::findModel(options.model),
+                              XFeatExtractor::signature(options), options.runtime);
+}
+
+/// A view of batch item 0 of an NCHW output, checked to be at stride 8 of the input.
+DenseMap mapOf(const inference::Tensor& tensor, const std::string& name, cv::Size input,
+               const inference::OnnxModel& model) {
+  const DenseMap map{tensor.data.data(), static_cast<int>(tensor.dim(1)),
+                     static_cast<int>(tensor.dim(2)), static_cast<int>(tensor.dim(3))};
+  if (map.rows * kStride != input.height || map.cols * kStride != input.width) {
+    throw InputError(InputLocation(model.file()),
+                     fmt::format("output '{}' is {}x{} for a {}x{} input, expected 1/{} of it",
+                                 name, map.cols, map.rows, input.width, input.height, kStride));
+  }
+  return map;
+}
+
+}  // namespace
+
+void XFeatOptions::validate() const {
+  if (model.empty()) throw OptionError("model", "must name a model file");
+  if (max_keypoints < 1) {
+    throw OptionError("max_keypoints", fmt::format("must be >= 1, got {}", max_keypoints));
+  }
+  if (!(detection_threshold >= 0.0f && detection_threshold < 1.0f)) {
+    throw OptionError("detection_threshold",
+                      fmt::format("must be in [0, 1), got {}", detection_threshold));
+  }
+  if (nms_window < 1 || nms_window % 2 == 0) {
+    throw OptionError("nms_window", fmt::format("must be odd and >= 1, got {}", nms_window));
+  }
+  if (grid_cell_px < 0) {
+    throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
+  }
+  if (warmup_size.width < 0 || warmup_size.height < 0) {
+    throw OptionError("warmup_size", "must not be negative");
+  }
+  if (descriptors_output.empty() || keypoints_output.empty() || reliability_output.empty()) {
+    throw OptionError("descriptors_output/keypoints_output/reliability_output",
+                      "output names must not be empty");
+  }
+  runtime.validate();
+}
+
+inference::ModelSignature XFeatExtractor::signature(const XFeatOptions& options) {
+  using inference::DimSpec;
+  inference::ModelSignature signature;
+  signature.network = "XFeat";
+  signature.inputs.push_back(
+      {"",
+       {DimSpec::dynamic("batch"), DimSpec::fixed(3, "channels"),
+        DimSpec::multipleOf(kSizeMultiple, "height"), DimSpec::multipleOf(kSizeMultiple, "width")},
+       inference::ElementType::kFloat32});
+  const auto map = [](const std::string& name, std::int64_t channels) {
+    return inference::TensorSpec{name,
+                                 {DimSpec::dynamic("batch"), DimSpec::fixed(channels, "channels"),
+                                  DimSpec::dynamic("height / 8"), DimSpec::dynamic("width / 8")},
+                                 inference::ElementType::kFloat32};
+  };
+  signature.outputs.push_back(map(options.descriptors_output, kDescriptorSize));
+  signature.outputs.push_back(map(options.keypoints_output, kStride * kStride + 1));
+  signature.outputs.push_back(map(options.reliability_output, 1));
+  return signature;
+}
+
+XFeatExtractor::XFeatExtractor(const XFeatOptions& options)
+    : options_(options), model_(loadModel(options)) {
+  if (!options_.warmup_size.empty()) {
+    const auto fit = planFit(options_.warmup_size, kSizeMultiple, options_.fit);
+    model_.warmUp({{1, 3, fit.network.height, fit.network.width}});
+  }
+}
+
+FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
+  if (gray.empty() || gray.type() != CV_8UC1) {
+    throw InputError("XFeat needs a non-empty 8-bit grayscale image (CV_8UC1)");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const ImageFit fit = planFit(gray.size(), kSizeMultiple, options_.fit);
+  const cv::Mat fitted = applyFit(gray, fit);
+
+  // [1, 3, H, W]: the gray image in all three channels (the network averages them).
+  const int H = fit.network.height, W = fit.network.width;
+  const std::size_t plane = static_cast<std::size_t>(H) * W;
+  input_.resize(3 * plane);
+  for (int y = 0; y < H; ++y) {
+    const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
+    float* dst = input_.data() + static_cast<std::size_t>(y) * W;
+    for (int x = 0; x < W; ++x)
+      dst[x] = static_cast<float>(src[x]) / 255.0f;
+  }
+  std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
+            input_.begin() + static_cast<std::ptrdiff_t>(plane));
+  std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
+            input_.begin() + static_cast<std::ptrdiff_t>(2 * plane));
+
+  const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
+  const DenseMap descriptors = mapOf(outputs[0], options_.descriptors_output, fit.network, model_);
+  const DenseMap logits = mapOf(outputs[1], options_.keypoints_output, fit.network, model_);
+  const DenseMap reliability = mapOf(outputs[2], options_.reliability_output, fit.network, model_);
+
+  // Detection on the part of the heatmap that shows the image (not the padding).
+  const cv::Mat heatmap = cellLogitsToHeatmap(logits, kStride)(cv::Rect({0, 0}, fit.valid()));
+  std::vector<ScoredPixel> points =
+      localMaxima(heatmap, options_.nms_window, options_.detection_threshold);
+  for (auto& p : points) {
+    const Eigen::Vector2d uv = pixelToMap(Eigen::Vector2d(p.x, p.y), kStride);
+    p.score *= sampleBilinear(reliability, 0, uv.x(), uv.y());
+  }
+  points = selectTopK(std::move(points), options_.max_keypoints, options_.grid_cell_px);
+
+  std::vector<Eigen::Vector2d> pixels;
+  pixels.reserve(points.size());
+  for (const auto& p : points)
+    pixels.emplace_back(p.x, p.y);
+  const std::vector<float> unit_cells = normalizeCells(descriptors);
+  const DenseMap unit_map{unit_cells.data(), descriptors.channels, descriptors.rows,
+                          descriptors.cols};
+
+  FeatureSet features;
+  features.descriptor_type = DescriptorType::kFloat;
+  features.image_size = gray.size();
+  features.descriptors = sampleDescriptors(unit_map, pixels, kStride);
+  features.keypoints.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    Keypoint kp;
+    kp.pixel = fit.toOriginal(pixels[i]);
+    kp.response = points[i].score;
+    kp.size =
+        static_cast<float>(kStride * fit.original.width) / static_cast<float>(fit.network.width);
+    features.keypoints.push_back(kp);
+  }
+  last_extract_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return features;
+}
+
+}  // namespace superdyna::features

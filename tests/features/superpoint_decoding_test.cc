@@ -1,0 +1,189 @@
+// Unit tests of the decoding steps shared by SuperPointExtractor and XFeatExtractor
+// (keypoint_decoding.h), on hand-made maps with known answers.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "superdyna/core/error.h"
+#include "superdyna/features/keypoint_decoding.h"
+#include "support/test_support.h"
+
+namespace superdyna::features {
+namespace {
+
+using test::expectError;
+
+/// A [channels, rows, cols] buffer with a DenseMap view of it.
+struct Buffer {
+  Buffer(int channels, int rows, int cols, float value = 0.0f)
+      : data(static_cast<std::size_t>(channels * rows * cols), value),
+        map{nullptr, channels, rows, cols} {
+    map.data = data.data();
+  }
+  float& at(int c, int y, int x) {
+    return data[(static_cast<std::size_t>(c) * map.rows + y) * map.cols + x];
+  }
+  std::vector<float> data;
+  DenseMap map;
+};
+
+TEST(KeypointDecoding, HeatmapPutsEachChannelOnItsPixelOfTheCell) {
+  Buffer logits(65, 2, 3);
+  // Cell (row 1, col 2): channel 8 * 3 + 5 dominates -> pixel (x = 2 * 8 + 5, y = 1 * 8 + 3).
+  logits.at(8 * 3 + 5, 1, 2) = 20.0f;
+  // Cell (0, 0): the dustbin dominates.
+  logits.at(64, 0, 0) = 20.0f;
+  const cv::Mat heat = cellLogitsToHeatmap(logits.map);
+  ASSERT_EQ(heat.size(), cv::Size(24, 16));
+  ASSERT_EQ(heat.type(), CV_32FC1);
+  cv::Point max_at;
+  double max_value = 0.0;
+  cv::minMaxLoc(heat, nullptr, &max_value, nullptr, &max_at);
+  EXPECT_EQ(max_at, cv::Point(21, 11));
+  const double e20 = std::exp(20.0);
+  EXPECT_NEAR(max_value, e20 / (e20 + 64.0), 1e-6);
+  // Uniform logits: every pixel gets 1/65; a cell whose dustbin wins has almost no heat.
+  EXPECT_NEAR(heat.at<float>(3, 12), 1.0 / 65.0, 1e-7);
+  EXPECT_NEAR(cv::sum(heat(cv::Rect(0, 0, 8, 8)))[0], 64.0 / (e20 + 64.0), 1e-9);
+  EXPECT_NEAR(cv::sum(heat(cv::Rect(8, 0, 8, 8)))[0], 64.0 / 65.0, 1e-5);
+
+  Buffer wrong(64, 2, 2);
+  expectError([&] { cellLogitsToHeatmap(wrong.map); }, {"64 channels, expected 65"});
+}
+
+TEST(KeypointDecoding, LocalMaximaActLikeAMaxPoolWithThreshold) {
+  cv::Mat heat(12, 12, CV_32FC1, cv::Scalar(0.0f));
+  heat.at<float>(5, 5) = 0.9f;
+  heat.at<float>(5, 7) = 0.8f;   // 2 px away: inside the 5x5 window of the first
+  heat.at<float>(5, 8) = 0.7f;   // 3 px away from the first, 1 px from the second
+  heat.at<float>(0, 11) = 0.5f;  // at the corner: max-pool padding never beats it
+  heat.at<float>(10, 2) = 0.3f;  // a plateau of two equal maxima: both kept
+  heat.at<float>(10, 3) = 0.3f;
+  heat.at<float>(2, 1) = 0.05f;  // not above the threshold
+  const auto points = localMaxima(heat, 5, 0.05f);
+  ASSERT_EQ(points.size(), 4u);  // row-major order
+  EXPECT_EQ(points[0].x, 11);
+  EXPECT_EQ(points[0].y, 0);
+  EXPECT_EQ(points[1].x, 5);
+  EXPECT_FLOAT_EQ(points[1].score, 0.9f);
+  EXPECT_EQ(points[2].x, 2);
+  EXPECT_EQ(points[3].x, 3);
+  // The point 3 px away survives a 5x5 window only when its 1 px neighbour is gone.
+  heat.at<float>(5, 7) = 0.0f;
+  EXPECT_EQ(localMaxima(heat, 5, 0.05f).size(), 5u);
+  // A submatrix is pooled on its own: the parent's pixels beyond its edge do not count.
+  heat.at<float>(9, 6) = 0.4f;  // suppressed in `heat` by its right neighbour ...
+  heat.at<float>(9, 7) = 0.6f;
+  EXPECT_EQ(localMaxima(heat, 5, 0.05f).size(), 6u);
+  const cv::Mat left = heat(cv::Rect(0, 0, 7, 12));  // ... which this submatrix does not hold
+  const auto sub = localMaxima(left, 5, 0.05f);
+  ASSERT_EQ(sub.size(), 4u);
+  EXPECT_EQ(sub[1].x, 6);
+  EXPECT_EQ(sub[1].y, 9);
+  expectError<OptionError>([&] { localMaxima(heat, 4, 0.0f); }, {"nms_window"});
+}
+
+TEST(KeypointDecoding, GreedyNmsSuppressesSquaresAroundKeptPointsOnly) {
+  const std::vector<ScoredPixel> candidates = {{13, 10, 0.8f}, {10, 10, 0.9f}, {15, 10, 0.7f},
+                                               {10, 14, 0.6f}, {10, 15, 0.6f}, {30, 30, 0.6f}};
+  const auto kept = suppressNonMaxima(candidates, 4, {40, 40});
+  // (13,10) falls in the square of (10,10); (15,10) only in that of the suppressed (13,10);
+  // (10,14) is within 4 px of (10,10) in both axes; (10,15) is not.
+  ASSERT_EQ(kept.size(), 4u);
+  EXPECT_EQ(kept[0].x, 10);
+  EXPECT_EQ(kept[0].y, 10);
+  EXPECT_EQ(kept[1].x, 15);
+  // Equal scores: by row, then column.
+  EXPECT_EQ(kept[2].y, 15);
+  EXPECT_EQ(kept[3].x, 30);
+  EXPECT_EQ(suppressNonMaxima(candidates, 0, {40, 40}).size(), candidates.size());
+  expectError([&] { suppressNonMaxima({{50, 1, 1.0f}}, 4, {40, 40}); }, {"outside"});
+}
+
+TEST(KeypointDecoding, BorderAndTopKSelection) {
+  const std::vector<ScoredPixel> points = {
+      {3, 10, 0.1f}, {4, 10, 0.2f}, {15, 15, 0.3f}, {16, 10, 0.4f}, {10, 3, 0.5f}};
+  const auto inside = keepInside(points, 4, {20, 20});
+  ASSERT_EQ(inside.size(), 2u);  // x = 4 and x = 15 stay; 16 >= 20 - 4 and y = 3 go
+  EXPECT_EQ(inside[0].x, 4);
+  EXPECT_EQ(inside[1].x, 15);
+
+  // Cell (0,0) of a 10 px grid holds the four best points; three other cells one each.
+  std::vector<ScoredPixel> many = {{1, 1, 0.99f}, {2, 2, 0.98f}, {3, 3, 0.97f}, {4, 4, 0.96f},
+                                   {15, 1, 0.2f}, {1, 15, 0.3f}, {15, 15, 0.1f}};
+  const auto best = selectTopK(many, 4);
+  ASSERT_EQ(best.size(), 4u);
+  EXPECT_FLOAT_EQ(best[3].score, 0.96f);
+  const auto spread = selectTopK(many, 4, 10);
+  ASSERT_EQ(spread.size(), 4u);  // every cell's best first, then sorted by score
+  EXPECT_FLOAT_EQ(spread[0].score, 0.99f);
+  EXPECT_FLOAT_EQ(spread[1].score, 0.3f);
+  EXPECT_FLOAT_EQ(spread[2].score, 0.2f);
+  EXPECT_FLOAT_EQ(spread[3].score, 0.1f);
+  const auto five = selectTopK(many, 5, 10);
+  EXPECT_FLOAT_EQ(five[1].score, 0.98f);
+  EXPECT_EQ(selectTopK(many, 0).size(), many.size());
+}
+
+TEST(KeypointDecoding, PixelCentreConventionAndBilinearSampling) {
+  // The centre of cell 0 (pixels 0..7) is pixel 3.5; pixel 0 lies 7/16 cell before it.
+  EXPECT_DOUBLE_EQ(pixelToMap({3.5, 11.5}, 8).x(), 0.0);
+  EXPECT_DOUBLE_EQ(pixelToMap({3.5, 11.5}, 8).y(), 1.0);
+  EXPECT_DOUBLE_EQ(pixelToMap({0.0, 0.0}, 8).x(), -0.4375);
+
+  // A map linear in (u, v): bilinear sampling reproduces it inside, clamps outside.
+  Buffer ramp(2, 3, 4);
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 4; ++x) {
+      ramp.at(0, y, x) = static_cast<float>(2 * x + 10 * y);
+      ramp.at(1, y, x) = 1.0f;
+    }
+  }
+  EXPECT_NEAR(sampleBilinear(ramp.map, 0, 1.25, 0.5), 2.5 + 5.0, 1e-6);
+  EXPECT_NEAR(sampleBilinear(ramp.map, 0, -3.0, 0.0), 0.0, 1e-6);
+  EXPECT_NEAR(sampleBilinear(ramp.map, 0, 7.0, 9.0), 6.0 + 20.0, 1e-6);
+
+  // Descriptors: sampled at the pixel's map coordinate, then unit length.
+  const cv::Mat d = sampleDescriptors(ramp.map, {{11.5, 3.5}}, 8);  // map (1, 0): values 2 and 1
+  ASSERT_EQ(d.size(), cv::Size(2, 1));
+  EXPECT_NEAR(d.at<float>(0, 0), 2.0 / std::sqrt(5.0), 1e-6);
+  EXPECT_NEAR(d.at<float>(0, 1), 1.0 / std::sqrt(5.0), 1e-6);
+  Buffer zero(3, 2, 2);
+  EXPECT_EQ(cv::norm(sampleDescriptors(zero.map, {{4.0, 4.0}}, 8)), 0.0);
+
+  const std::vector<float> unit = normalizeCells(ramp.map);
+  const DenseMap unit_map{unit.data(), 2, 3, 4};
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 4; ++x) {
+      EXPECT_NEAR(std::hypot(unit_map.at(0, y, x), unit_map.at(1, y, x)), 1.0, 1e-6);
+    }
+  }
+}
+
+TEST(KeypointDecoding, FitsImagesByPaddingOrResizingAndMapsPixelsBack) {
+  const ImageFit pad = planFit({752, 480}, 32, FitMode::kPad);
+  EXPECT_EQ(pad.network, cv::Size(768, 480));
+  EXPECT_EQ(pad.valid(), cv::Size(752, 480));
+  EXPECT_EQ(pad.toOriginal({100.0, 50.0}), Eigen::Vector2d(100.0, 50.0));
+  const ImageFit resize = planFit({752, 480}, 32, FitMode::kResize);
+  EXPECT_EQ(resize.network, cv::Size(736, 480));
+  EXPECT_EQ(resize.valid(), cv::Size(736, 480));
+  // Centre to centre; pixel centres map onto pixel centres.
+  EXPECT_NEAR(resize.toOriginal({367.5, 239.5}).x(), 375.5, 1e-12);
+  EXPECT_NEAR(resize.toOriginal({367.5, 239.5}).y(), 239.5, 1e-12);
+  EXPECT_EQ(planFit({20, 10}, 32, FitMode::kResize).network, cv::Size(32, 32));
+  expectError<OptionError>([] { planFit({10, 10}, 0, FitMode::kPad); }, {"multiple"});
+  expectError([] { planFit({0, 10}, 8, FitMode::kPad); }, {"empty image"});
+
+  cv::Mat image(5, 6, CV_8UC1);
+  for (int i = 0; i < 30; ++i)
+    image.data[i] = static_cast<std::uint8_t>(i * 7);
+  const cv::Mat padded = applyFit(image, planFit(image.size(), 8, FitMode::kPad));
+  ASSERT_EQ(padded.size(), cv::Size(8, 8));
+  EXPECT_EQ(padded.at<std::uint8_t>(0, 6), image.at<std::uint8_t>(0, 4));  // reflected
+  EXPECT_EQ(padded.at<std::uint8_t>(5, 2), image.at<std::uint8_t>(3, 2));
+  EXPECT_EQ(padded.at<std::uint8_t>(2, 3), image.at<std::uint8_t>(2, 3));  // unchanged inside
+}
+
+}  // namespace
+}  // namespace superdyna::features
