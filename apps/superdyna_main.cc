@@ -10,6 +10,7 @@
 #include "commands/demo_command.h"
 #include "commands/eval_command.h"
 #include "commands/info_command.h"
+#include "commands/run_command.h"
 #include "commands/simulate_command.h"
 #include "superdyna/core/error.h"
 
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
   commands.push_back(superdyna::apps::makeSimulateCommand(app));
   commands.push_back(superdyna::apps::makeInfoCommand(app));
   commands.push_back(superdyna::apps::makeDemoCommand(app));
+  commands.push_back(superdyna::apps::makeRunCommand(app));
 
   try {
     app.parse(argc, argv);

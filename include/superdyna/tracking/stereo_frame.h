@@ -1,0 +1,29 @@
+#pragma once
+// One stereo frame prepared for tracking: the left features, their undistorted normalised
+// coordinates and, where the stereo matcher found a partner, the depth, the point in cam0 and the
+// normalised coordinates of the partner in the right camera.
+
+#include <Eigen/Core>
+#include <optional>
+#include <vector>
+
+#include "superdyna/core/time.h"
+#include "superdyna/features/feature_set.h"
+
+namespace superdyna::tracking {
+
+struct StereoFrame {
+  TimeNs t_ns = 0;
+  features::FeatureSet features;  ///< Left (cam0) features.
+  /// Undistorted normalised coordinates per left keypoint; NaN when undistortion failed.
+  std::vector<Eigen::Vector2d> normalized;
+  std::vector<double> depth_m;        ///< Depth in cam0 per keypoint [m]; -1 = no stereo.
+  std::vector<Eigen::Vector3d> p_c0;  ///< Stereo point in cam0 [m] (valid when depth_m > 0).
+  std::vector<std::optional<Eigen::Vector2d>> right_normalized;  ///< Partner in cam1, if any.
+
+  std::size_t size() const { return features.size(); }
+  bool hasStereo(std::size_t i) const { return depth_m[i] > 0.0; }
+  int numStereo() const;
+};
+
+}  // namespace superdyna::tracking

@@ -1,0 +1,141 @@
+// YAML options file of the SLAM system: one map per section, one number (or true/false) per key.
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <string>
+
+#include "superdyna/core/error.h"
+#include "superdyna/io/yaml_file.h"
+#include "superdyna/system/system.h"
+
+namespace superdyna::system {
+
+namespace {
+
+using Setter = std::function<void(const io::YamlFile&, const YAML::Node&, const std::string&)>;
+using Section = std::map<std::string, Setter>;
+
+Setter doubleSetter(double& target) {
+  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
+    target = file.number(node, field);
+  };
+}
+
+Setter intSetter(int& target) {
+  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
+    const double value = file.number(node, field);
+    if (value != std::round(value) || std::abs(value) > 1e9) {
+      throw InputError(file.at(node, field), "expected an integer");
+    }
+    target = static_cast<int>(value);
+  };
+}
+
+Setter boolSetter(bool& target) {
+  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
+    const std::string value = file.scalar(node, field);
+    if (value != "true" && value != "false") {
+      throw InputError(file.at(node, field), "expected true or false");
+    }
+    target = value == "true";
+  };
+}
+
+std::map<std::string, Section> sectionsOf(SystemOptions& o) {
+  auto& t = o.tracker;
+  return {
+      {"orb",
+       {{"features", intSetter(t.orb.features)},
+        {"scale_factor", doubleSetter(t.orb.scale_factor)},
+        {"levels", intSetter(t.orb.levels)},
+        {"fast_threshold", intSetter(t.orb.fast_threshold)},
+        {"min_fast_threshold", intSetter(t.orb.min_fast_threshold)},
+        {"cell_size", intSetter(t.orb.cell_size)},
+        {"edge_threshold", intSetter(t.orb.edge_threshold)},
+        {"blur_sigma", doubleSetter(t.orb.blur_sigma)}}},
+      {"stereo",
+       {{"max_epipolar_error_px", doubleSetter(t.stereo.max_epipolar_error_px)},
+        {"max_distance", intSetter(t.stereo.max_distance)},
+        {"ratio", doubleSetter(t.stereo.ratio)},
+        {"max_octave_difference", intSetter(t.stereo.max_octave_difference)},
+        {"max_angle_difference_deg", doubleSetter(t.stereo.max_angle_difference_deg)},
+        {"min_depth_m", doubleSetter(t.stereo.min_depth_m)},
+        {"max_depth_m", doubleSetter(t.stereo.max_depth_m)}}},
+      {"projection",
+       {{"radius_px", doubleSetter(t.projection.radius_px)},
+        {"max_distance", intSetter(t.projection.max_distance)},
+        {"ratio", doubleSetter(t.projection.ratio)},
+        {"max_octave_difference", intSetter(t.projection.max_octave_difference)},
+        {"check_orientation", boolSetter(t.projection.check_orientation)}}},
+      {"pose",
+       {{"rounds", intSetter(t.pose.rounds)},
+        {"iterations_per_round", intSetter(t.pose.iterations_per_round)},
+        {"robust_rounds", intSetter(t.pose.robust_rounds)},
+        {"sigma0_px", doubleSetter(t.pose.sigma0_px)},
+        {"chi2_mono", doubleSetter(t.pose.chi2_mono)},
+        {"min_inliers", intSetter(t.pose.min_inliers)}}},
+      {"tracker",
+       {{"wide_radius_px", doubleSetter(t.wide_radius_px)},
+        {"min_projection_matches", intSetter(t.min_projection_matches)},
+        {"min_inliers", intSetter(t.min_inliers)},
+        {"local_keyframes", intSetter(t.local_keyframes)},
+        {"keyframe_tracked_ratio", doubleSetter(t.keyframe_tracked_ratio)},
+        {"keyframe_max_interval_s", doubleSetter(t.keyframe_max_interval_s)},
+        {"keyframe_min_tracked", intSetter(t.keyframe_min_tracked)},
+        {"keyframe_min_stereo", intSetter(t.keyframe_min_stereo)},
+        {"close_depth_baselines", doubleSetter(t.close_depth_baselines)},
+        {"min_new_points", intSetter(t.min_new_points)},
+        {"stereo_pose_observations", boolSetter(t.stereo_pose_observations)},
+        {"imu_translation_prediction", boolSetter(t.imu_translation_prediction)},
+        {"imu_rotation_prior_sigma_deg", doubleSetter(t.imu_rotation_prior_sigma_deg)}}},
+      {"mapping",
+       {{"window_keyframes", intSetter(o.mapping.window_keyframes)},
+        {"iterations", intSetter(o.mapping.iterations)},
+        {"chi2_outlier", doubleSetter(o.mapping.chi2_outlier)},
+        {"cull_after_keyframes", intSetter(o.mapping.cull_after_keyframes)},
+        {"min_observations", intSetter(o.mapping.min_observations)},
+        {"min_found_ratio", doubleSetter(o.mapping.min_found_ratio)},
+        {"sigma0_px", doubleSetter(o.mapping.sigma0_px)}}},
+  };
+}
+
+void applySection(const io::YamlFile& file, const std::string& name, const YAML::Node& node,
+                  const Section& section) {
+  if (!node.IsMap()) throw InputError(file.at(node, name), "expected a map of options");
+  for (const auto& entry : node) {
+    const std::string key = entry.first.Scalar();
+    const std::string field = name + "." + key;
+    const auto setter = section.find(key);
+    if (setter == section.end()) {
+      throw InputError(file.at(entry.first, field), "unknown key '" + field + "'");
+    }
+    setter->second(file, entry.second, field);
+  }
+}
+
+}  // namespace
+
+SystemOptions loadSystemOptions(const std::filesystem::path& path, SystemOptions defaults) {
+  const io::YamlFile file = io::YamlFile::load(path);
+  const YAML::Node& root = file.root();
+  if (root.IsNull()) return defaults;
+  if (!root.IsMap()) throw InputError(file.at(root, ""), "expected a map of option sections");
+  const std::map<std::string, Section> sections = sectionsOf(defaults);
+  for (const auto& entry : root) {
+    const std::string name = entry.first.Scalar();
+    const auto section = sections.find(name);
+    if (section == sections.end()) {
+      throw InputError(file.at(entry.first, name), "unknown section '" + name + "'");
+    }
+    applySection(file, name, entry.second, section->second);
+  }
+  try {
+    defaults.validate();
+  } catch (const OptionError& e) {
+    throw InputError(InputLocation{path}, e.what());
+  }
+  return defaults;
+}
+
+}  // namespace superdyna::system

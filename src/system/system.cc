@@ -1,0 +1,65 @@
+#include "superdyna/system/system.h"
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::system {
+
+SensorMode parseSensorMode(const std::string& name) {
+  if (name == "stereo") return SensorMode::kStereo;
+  if (name == "stereo-inertial") return SensorMode::kStereoInertial;
+  if (name == "mono" || name == "mono-inertial") {
+    throw OptionError("--mode", "'" + name +
+                                    "' is not implemented yet; supported modes: stereo, "
+                                    "stereo-inertial");
+  }
+  throw OptionError("--mode",
+                    "unknown mode '" + name + "'; supported modes: stereo, stereo-inertial");
+}
+
+std::string toString(SensorMode mode) {
+  return mode == SensorMode::kStereo ? "stereo" : "stereo-inertial";
+}
+
+bool usesImu(SensorMode mode) {
+  return mode == SensorMode::kStereoInertial;
+}
+
+void SystemOptions::validate() const {
+  tracker.validate();
+  mapping.validate();
+}
+
+namespace {
+
+SystemOptions checkedOptions(SystemOptions options) {
+  options.tracker.use_imu = usesImu(options.mode);
+  options.validate();
+  return options;
+}
+
+}  // namespace
+
+System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
+               const io::CameraCalibration& cam1, const std::optional<io::ImuCalibration>& imu)
+    : options_(checkedOptions(options)),
+      tracker_(options_.tracker, options_.mapping, cam0, cam1,
+               usesImu(options_.mode) ? imu : std::nullopt) {
+  if (usesImu(options_.mode) && !imu) {
+    throw OptionError("--mode", "stereo-inertial needs IMU calibration and samples");
+  }
+}
+
+tracking::TrackingResult System::process(const io::FrameBundle& frame) {
+  const tracking::TrackingResult result = tracker_.track(frame);
+  trajectory_.push_back({frame.t_ns, result.T_w_b});
+  ++timings_.frames;
+  if (result.keyframe) ++timings_.keyframes;
+  timings_.total.extract_ms += result.times.extract_ms;
+  timings_.total.stereo_ms += result.times.stereo_ms;
+  timings_.total.track_ms += result.times.track_ms;
+  timings_.total.local_ba_ms += result.times.local_ba_ms;
+  if (result.state == tracking::TrackingState::kLost) ++lost_frames_;
+  return result;
+}
+
+}  // namespace superdyna::system

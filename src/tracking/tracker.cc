@@ -1,0 +1,440 @@
+#include "superdyna/tracking/tracker.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::tracking {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+Eigen::Vector2d notANumber() {
+  return Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+}
+
+Eigen::Vector2d normalizedOf(const CameraModel& camera, const Eigen::Vector2d& pixel) {
+  const auto bearing = camera.unproject(pixel);
+  if (!bearing || !((*bearing).z() > 1e-6)) return notANumber();
+  return Eigen::Vector2d(bearing->x() / bearing->z(), bearing->y() / bearing->z());
+}
+
+}  // namespace
+
+int StereoFrame::numStereo() const {
+  return static_cast<int>(
+      std::count_if(depth_m.begin(), depth_m.end(), [](double d) { return d > 0.0; }));
+}
+
+void TrackerOptions::validate() const {
+  orb.validate();
+  stereo.validate();
+  projection.validate();
+  pose.validate();
+  if (!(wide_radius_px > 0.0)) throw OptionError("tracker.wide_radius_px", "must be > 0");
+  if (min_projection_matches < 0) {
+    throw OptionError("tracker.min_projection_matches", "must be >= 0");
+  }
+  if (min_inliers < 3) throw OptionError("tracker.min_inliers", "must be >= 3");
+  if (local_keyframes < 0) throw OptionError("tracker.local_keyframes", "must be >= 0");
+  if (!(keyframe_tracked_ratio > 0.0 && keyframe_tracked_ratio <= 1.0)) {
+    throw OptionError("tracker.keyframe_tracked_ratio", "must be in (0, 1]");
+  }
+  if (!(keyframe_max_interval_s > 0.0)) {
+    throw OptionError("tracker.keyframe_max_interval_s", "must be > 0");
+  }
+  if (keyframe_min_tracked < 0) throw OptionError("tracker.keyframe_min_tracked", "must be >= 0");
+  if (keyframe_min_stereo < 0) throw OptionError("tracker.keyframe_min_stereo", "must be >= 0");
+  if (!(close_depth_baselines > 0.0)) {
+    throw OptionError("tracker.close_depth_baselines", "must be > 0");
+  }
+  if (min_new_points < 0) throw OptionError("tracker.min_new_points", "must be >= 0");
+  if (!(imu_rotation_prior_sigma_deg >= 0.0)) {
+    throw OptionError("tracker.imu_rotation_prior_sigma_deg", "must be >= 0");
+  }
+}
+
+const char* toString(TrackingState state) {
+  switch (state) {
+    case TrackingState::kTracking:
+      return "tracking";
+    case TrackingState::kInitialized:
+      return "initialized";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+Tracker::Tracker(const TrackerOptions& options, const mapping::LocalMapperOptions& mapping,
+                 const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+                 const std::optional<io::ImuCalibration>& imu)
+    : options_(options),
+      camera0_(cam0.cameraModel()),
+      T_b_c0_(cam0.T_b_c),
+      left_extractor_(options.orb),
+      right_extractor_(options.orb),
+      stereo_matcher_(cam0, cam1, options.stereo),
+      pose_optimizer_(options.pose),
+      cameras_{optim::ReprojectionCamera::from(cam0.cameraModel(), cam0.T_b_c),
+               optim::ReprojectionCamera::from(cam1.cameraModel(), cam1.T_b_c)},
+      imu_(options.use_imu ? imu : std::nullopt),
+      baseline_m_((cam0.T_b_c.inverse() * cam1.T_b_c).t.norm()),
+      mapper_(mapping, cameras_) {
+  options_.validate();
+}
+
+StereoFrame Tracker::buildFrame(const io::FrameBundle& bundle, StageTimes& times) {
+  StereoFrame frame;
+  frame.t_ns = bundle.t_ns;
+  auto start = Clock::now();
+  frame.features = left_extractor_.extract(bundle.image0);
+  const features::FeatureSet right = right_extractor_.extract(bundle.image1);
+  times.extract_ms = millisecondsSince(start);
+
+  start = Clock::now();
+  const std::size_t n = frame.features.size();
+  frame.normalized.resize(n);
+  frame.depth_m.assign(n, -1.0);
+  frame.p_c0.assign(n, Eigen::Vector3d::Zero());
+  frame.right_normalized.assign(n, std::nullopt);
+  for (std::size_t i = 0; i < n; ++i)
+    frame.normalized[i] = normalizedOf(camera0_, frame.features.keypoints[i].pixel);
+  for (const features::StereoMatch& m : stereo_matcher_.match(frame.features, right)) {
+    const auto i = static_cast<std::size_t>(m.left);
+    if (!frame.normalized[i].allFinite()) continue;
+    const Eigen::Vector2d r = normalizedOf(
+        stereo_matcher_.camera1(), right.keypoints[static_cast<std::size_t>(m.right)].pixel);
+    if (!r.allFinite()) continue;
+    frame.depth_m[i] = m.depth_m;
+    frame.p_c0[i] = m.p_c0;
+    frame.right_normalized[i] = r;
+  }
+  times.stereo_ms = millisecondsSince(start);
+  return frame;
+}
+
+Tracker::Prediction Tracker::predictPose(const io::FrameBundle& bundle) const {
+  if (!has_last_) return {};
+  SE3d motion = has_motion_ ? motion_ : SE3d();
+  const auto& samples = bundle.imu;
+  if (imu_ && samples.size() >= 2 && samples.front().t_ns <= t_last_ns_ &&
+      samples.back().t_ns >= bundle.t_ns && bundle.t_ns > t_last_ns_) {
+    imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
+    preintegration.integrateBetween(samples, t_last_ns_, bundle.t_ns);
+    if (options_.imu_translation_prediction && has_velocity_) {
+      return {predictWithImu(preintegration), true};
+    }
+    const Eigen::Matrix3d R_b_i = imu_->T_b_i.rotation();
+    const Eigen::Matrix3d dR = R_b_i * preintegration.deltaRotation() * R_b_i.transpose();
+    motion = SE3d(Eigen::Quaterniond(dR).normalized(), motion.t);
+    return {T_w_b_last_ * motion, true};
+  }
+  return {T_w_b_last_ * motion, false};
+}
+
+SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
+  const SE3d T_w_i = T_w_b_last_ * imu_->T_b_i;
+  imu::NavState state;
+  state.R_w_b = T_w_i.rotation();
+  state.p_w = T_w_i.t;
+  state.v_w = velocity_w_;
+  const imu::NavState next = preintegration.predict(state, bias_);
+  return SE3d(Eigen::Quaterniond(next.R_w_b).normalized(), next.p_w) * imu_->T_b_i.inverse();
+}
+
+std::optional<optim::PosePrior> Tracker::rotationPrior(const Prediction& prediction) const {
+  if (!prediction.from_imu || !(options_.imu_rotation_prior_sigma_deg > 0.0)) return std::nullopt;
+  const double sigma_rad = options_.imu_rotation_prior_sigma_deg * M_PI / 180.0;
+  optim::PosePrior prior;
+  prior.T_w_b = prediction.T_w_b;
+  prior.information.setZero();
+  prior.information.diagonal() << Eigen::Vector3d::Constant(1.0 / (sigma_rad * sigma_rad)),
+      Eigen::Vector3d::Constant(1e-6);  // position: essentially free
+  return prior;
+}
+
+SE3d Tracker::initialPose(const io::FrameBundle& bundle, const SE3d& predicted) const {
+  if (has_last_) return predicted;  // a reset keeps the world frame of the lost map
+  if (!imu_ || bundle.imu.empty()) return SE3d();
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();
+  for (const io::ImuSample& s : bundle.imu)
+    accel += s.accel;
+  const Eigen::Vector3d up_b = imu_->T_b_i.rotation() * accel;
+  if (!(up_b.norm() > 1e-6)) return SE3d();
+  return SE3d(Eigen::Quaterniond::FromTwoVectors(up_b, Eigen::Vector3d::UnitZ()),
+              Eigen::Vector3d::Zero());
+}
+
+TrackingResult Tracker::track(const io::FrameBundle& bundle) {
+  TrackingResult result;
+  const StereoFrame frame = buildFrame(bundle, result.times);
+  const auto start = Clock::now();
+  const Prediction prediction = predictPose(bundle);
+  result.T_w_b = prediction.T_w_b;
+  if (!has_map_) {
+    initializeAt(frame, initialPose(bundle, prediction.T_w_b), result);
+    result.times.track_ms = millisecondsSince(start);
+    updateMotion(result.T_w_b, bundle.t_ns);
+    return result;
+  }
+  const std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result);
+  result.times.track_ms = millisecondsSince(start);
+  if (result.inliers < options_.min_inliers) {
+    has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
+    result.state = TrackingState::kLost;
+  } else {
+    result.state = TrackingState::kTracking;
+    if (needKeyFrame(frame, result.inliers)) addKeyFrameAndMap(frame, tracked, result);
+  }
+  updateMotion(result.T_w_b, bundle.t_ns);
+  return result;
+}
+
+void Tracker::initializeAt(const StereoFrame& frame, const SE3d& T_w_b, TrackingResult& result) {
+  result.T_w_b = T_w_b;
+  if (frame.numStereo() < options_.min_inliers) return;  // stays lost: nothing to build a map on
+  startMap(frame, T_w_b);
+  result.state = TrackingState::kInitialized;
+  result.keyframe = true;
+}
+
+std::vector<map::MapPointId> Tracker::trackLocalMap(const StereoFrame& frame,
+                                                    const Prediction& prediction,
+                                                    TrackingResult& result) {
+  std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
+  const std::vector<LocalPoint> points = localPoints();
+  const std::vector<features::Match> matches = matchLocalPoints(frame, points, prediction.T_w_b);
+  result.matches = static_cast<int>(matches.size());
+  if (result.matches < options_.min_inliers) return tracked;
+  const optim::PoseOptimizationResult pose =
+      pose_optimizer_.optimize(prediction.T_w_b, cameras_, poseObservations(frame, points, matches),
+                               rotationPrior(prediction));
+  // The first matches.size() observations are the left ones; count and keep those.
+  const auto left_end = pose.inliers.begin() + static_cast<std::ptrdiff_t>(matches.size());
+  result.inliers = static_cast<int>(std::count(pose.inliers.begin(), left_end, true));
+  if (result.inliers < options_.min_inliers) return tracked;
+  result.T_w_b = pose.T_w_b;
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (!pose.inliers[k]) continue;
+    const map::MapPointId id = points[static_cast<std::size_t>(matches[k].query)].id;
+    tracked[static_cast<std::size_t>(matches[k].train)] = id;
+    map_->increaseFound(id);
+  }
+  return tracked;
+}
+
+void Tracker::addKeyFrameAndMap(const StereoFrame& frame,
+                                const std::vector<map::MapPointId>& tracked,
+                                TrackingResult& result) {
+  const auto start = Clock::now();
+  const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked);
+  mapper_.processKeyFrame(*map_, id);
+  result.keyframe = true;
+  result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
+  result.times.local_ba_ms = millisecondsSince(start);
+}
+
+std::vector<optim::PoseObservation> Tracker::poseObservations(
+    const StereoFrame& frame, const std::vector<LocalPoint>& points,
+    const std::vector<features::Match>& matches) const {
+  std::vector<optim::PoseObservation> observations;
+  const auto observe = [&](const features::Match& m, int camera, const Eigen::Vector2d& xy) {
+    optim::PoseObservation o;
+    o.p_w = points[static_cast<std::size_t>(m.query)].p_w;
+    o.normalized = xy;
+    o.octave = frame.features.keypoints[static_cast<std::size_t>(m.train)].octave;
+    o.camera = camera;
+    observations.push_back(o);
+  };
+  for (const features::Match& m : matches)
+    observe(m, 0, frame.normalized[static_cast<std::size_t>(m.train)]);
+  if (!options_.stereo_pose_observations) return observations;
+  for (const features::Match& m : matches) {
+    const auto& right = frame.right_normalized[static_cast<std::size_t>(m.train)];
+    if (right) observe(m, 1, *right);
+  }
+  return observations;
+}
+
+void Tracker::updateMotion(const SE3d& T_w_b, TimeNs t_ns) {
+  if (has_last_) {
+    motion_ = T_w_b_last_.inverse() * T_w_b;
+    has_motion_ = true;
+  }
+  if (has_last_ && imu_ && t_ns > t_last_ns_) {
+    // Mean velocity of the IMU origin over the last step: the start state of the next prediction.
+    const double dt_s = nsToSeconds(t_ns - t_last_ns_);
+    velocity_w_ = ((T_w_b * imu_->T_b_i).t - (T_w_b_last_ * imu_->T_b_i).t) / dt_s;
+    has_velocity_ = true;
+  }
+  T_w_b_last_ = T_w_b;
+  t_last_ns_ = t_ns;
+  has_last_ = true;
+}
+
+void Tracker::startMap(const StereoFrame& frame, const SE3d& T_w_b) {
+  if (map_) ++resets_;
+  map::MapOptions map_options;
+  map_options.T_b_c = {T_b_c0_};
+  map_options.scale_factor = options_.orb.scale_factor;
+  map_options.num_levels = options_.orb.levels;
+  map_ = std::make_unique<map::Map>(map_options);
+  mapper_.reset();
+  point_keypoint_.clear();
+  insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
+  has_map_ = true;
+}
+
+std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
+  std::vector<map::KeyFrameId> keyframes =
+      map_->bestCovisibleKeyFrames(reference_, options_.local_keyframes);
+  keyframes.push_back(reference_);
+  std::set<map::MapPointId> ids;
+  for (const map::KeyFrameId id : keyframes) {
+    map_->readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      for (const map::MapPointId p : kf.map_points)
+        if (p != map::kNoMapPoint) ids.insert(p);
+    });
+  }
+  std::vector<LocalPoint> points;
+  points.reserve(ids.size());
+  for (const map::MapPointId id : ids) {
+    map_->readMapPoint(id, [&](const map::MapPoint& p) {
+      if (!p.bad) points.push_back({id, p.p_w});
+    });
+  }
+  return points;
+}
+
+std::vector<features::Match> Tracker::matchLocalPoints(const StereoFrame& frame,
+                                                       const std::vector<LocalPoint>& points,
+                                                       const SE3d& T_w_b) {
+  features::FeatureSet query;
+  // Keep only the points that project into the image; remember their index in `points`.
+  std::vector<int> visible;
+  std::vector<Eigen::Vector2d> predicted;
+  query.descriptor_type = features::DescriptorType::kBinary;
+  query.image_size = frame.features.image_size;
+  std::vector<cv::Mat> rows;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3d p_c = optim::worldToCamera(T_w_b, T_b_c0_, points[k].p_w);
+    if (!(p_c.z() > 0.05)) continue;
+    const auto pixel = camera0_.project(p_c);
+    if (!pixel || !camera0_.isInImage(*pixel)) continue;
+    cv::Mat descriptor;
+    map_->readMapPoint(points[k].id, [&](const map::MapPoint& p) { descriptor = p.descriptor; });
+    if (descriptor.empty()) continue;
+    map_->increaseVisible(points[k].id);
+    visible.push_back(static_cast<int>(k));
+    predicted.push_back(*pixel);
+    query.keypoints.push_back(point_keypoint_.at(points[k].id));
+    rows.push_back(descriptor);
+  }
+  if (visible.empty()) return {};
+  cv::vconcat(rows, query.descriptors);
+  const features::KeypointGrid grid(frame.features.keypoints, frame.features.image_size);
+  std::vector<features::Match> matches =
+      features::matchByProjection(query, predicted, frame.features, grid, options_.projection);
+  if (static_cast<int>(matches.size()) < options_.min_projection_matches) {
+    features::ProjectionMatchOptions wide = options_.projection;
+    wide.radius_px = options_.wide_radius_px;
+    matches = features::matchByProjection(query, predicted, frame.features, grid, wide);
+  }
+  std::vector<features::Match> usable;  // undistortion may fail far out in the image
+  for (features::Match m : matches) {
+    if (!frame.normalized[static_cast<std::size_t>(m.train)].allFinite()) continue;
+    m.query = visible[static_cast<std::size_t>(m.query)];
+    usable.push_back(m);
+  }
+  return usable;
+}
+
+bool Tracker::needKeyFrame(const StereoFrame& frame, int inliers) const {
+  if (frame.numStereo() < options_.keyframe_min_stereo) return false;
+  if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
+  if (inliers < options_.keyframe_min_tracked) return true;
+  return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
+}
+
+int Tracker::referenceTrackedPoints() const {
+  std::vector<map::MapPointId> ids;
+  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) { ids = kf.map_points; });
+  // Like ORB-SLAM: once the map has a few keyframes, count only points seen by two or more.
+  const int min_observations = map_->numKeyFrames() > 2 ? 2 : 1;
+  int tracked = 0;
+  for (const map::MapPointId id : ids) {
+    if (id == map::kNoMapPoint) continue;
+    map_->readMapPoint(id, [&](const map::MapPoint& p) {
+      if (!p.bad && p.numObservations() >= min_observations) ++tracked;
+    });
+  }
+  return tracked;
+}
+
+map::KeyFrameId Tracker::insertKeyFrame(const StereoFrame& frame, const SE3d& T_w_b,
+                                        const std::vector<map::MapPointId>& tracked) {
+  map::KeyFrame kf;
+  kf.t_ns = frame.t_ns;
+  kf.T_w_b = T_w_b;
+  kf.descriptors = frame.features.descriptors.clone();
+  kf.keypoints.resize(frame.size());
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    map::KeyFrameKeypoint& k = kf.keypoints[i];
+    const features::Keypoint& source = frame.features.keypoints[i];
+    k.pixel = source.pixel;
+    k.normalized = frame.normalized[i].allFinite() ? frame.normalized[i] : Eigen::Vector2d::Zero();
+    k.octave = source.octave;
+    k.class_id = source.class_id;
+    k.instance_id = source.instance_id;
+    k.depth_m = frame.depth_m[i];
+  }
+  kf.map_points = tracked;
+  const map::KeyFrameId id = map_->addKeyFrame(std::move(kf));
+  const std::vector<map::MapPointId> created = createStereoPoints(frame, T_w_b, id, tracked);
+  mapper_.addKeyFrame(id, frame.right_normalized, created);
+  reference_ = id;
+  t_reference_ns_ = frame.t_ns;
+  return id;
+}
+
+std::vector<map::MapPointId> Tracker::createStereoPoints(
+    const StereoFrame& frame, const SE3d& T_w_b, map::KeyFrameId keyframe,
+    const std::vector<map::MapPointId>& tracked) {
+  std::vector<std::size_t> candidates;
+  for (std::size_t i = 0; i < frame.size(); ++i) {
+    if (frame.hasStereo(i) && tracked[i] == map::kNoMapPoint) candidates.push_back(i);
+  }
+  std::stable_sort(candidates.begin(), candidates.end(), [&](std::size_t a, std::size_t b) {
+    return frame.depth_m[a] < frame.depth_m[b];
+  });
+  const double close_depth = options_.close_depth_baselines * baseline_m_;
+  const SE3d T_w_c0 = T_w_b * T_b_c0_;
+  std::vector<map::MapPointId> created;
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    const std::size_t i = candidates[k];
+    if (frame.depth_m[i] > close_depth && static_cast<int>(k) >= options_.min_new_points) break;
+    map::MapPoint point;
+    point.p_w = T_w_c0 * frame.p_c0[i];
+    point.descriptor = frame.features.descriptors.row(static_cast<int>(i)).clone();
+    point.class_id = frame.features.keypoints[i].class_id;
+    point.instance_id = frame.features.keypoints[i].instance_id;
+    const map::MapPointId id = map_->addMapPoint(std::move(point));
+    map_->addObservation(id, keyframe, static_cast<int>(i));
+    map_->updateNormalAndDistances(id);
+    point_keypoint_[id] = frame.features.keypoints[i];
+    created.push_back(id);
+  }
+  return created;
+}
+
+}  // namespace superdyna::tracking
