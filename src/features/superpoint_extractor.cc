@@ -5,6 +5,7 @@
 #include <chrono>
 #include <numeric>
 
+#include "dense_output.h"
 #include "superdyna/core/error.h"
 #include "superdyna/inference/model_files.h"
 
@@ -36,18 +37,6 @@ int effectiveSizeMultiple(const SuperPointOptions& options, const inference::Onn
         fmt::format("metadata value '{}' is not a size multiple in [1, 1024]", *value));
   }
   return std::lcm(options.size_multiple, required);
-}
-
-DenseMap mapOf(const inference::Tensor& tensor, const std::string& name, cv::Size input,
-               const inference::OnnxModel& model) {
-  const DenseMap map{tensor.data.data(), static_cast<int>(tensor.dim(1)),
-                     static_cast<int>(tensor.dim(2)), static_cast<int>(tensor.dim(3))};
-  if (map.rows * kStride != input.height || map.cols * kStride != input.width) {
-    throw InputError(InputLocation(model.file()),
-                     fmt::format("output '{}' is {}x{} for a {}x{} input, expected 1/{} of it",
-                                 name, map.cols, map.rows, input.width, input.height, kStride));
-  }
-  return map;
 }
 
 }  // namespace
@@ -126,8 +115,10 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
       dst[x] = static_cast<float>(src[x]) / 255.0f;
   }
   const auto outputs = model_.run({{input_.data(), {1, 1, H, W}}});
-  const DenseMap semi = mapOf(outputs[0], options_.scores_output, fit.network, model_);
-  const DenseMap desc = mapOf(outputs[1], options_.descriptors_output, fit.network, model_);
+  const DenseMap semi =
+      denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);
+  const DenseMap desc =
+      denseOutputMap(outputs[1], options_.descriptors_output, fit.network, model_.file(), kStride);
   if (desc.channels < 1) {
     throw InputError(InputLocation(model_.file()),
                      fmt::format("output '{}' has no channels", options_.descriptors_output));

@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "dense_output.h"
 #include "superdyna/core/error.h"
 #include "superdyna/inference/model_files.h"
 
@@ -19,19 +20,6 @@ inference::OnnxModel loadModel(const XFeatOptions& options) {
   options.validate();
   return inference::OnnxModel(inference::findModel(options.model),
                               XFeatExtractor::signature(options), options.runtime);
-}
-
-/// A view of batch item 0 of an NCHW output, checked to be at stride 8 of the input.
-DenseMap mapOf(const inference::Tensor& tensor, const std::string& name, cv::Size input,
-               const inference::OnnxModel& model) {
-  const DenseMap map{tensor.data.data(), static_cast<int>(tensor.dim(1)),
-                     static_cast<int>(tensor.dim(2)), static_cast<int>(tensor.dim(3))};
-  if (map.rows * kStride != input.height || map.cols * kStride != input.width) {
-    throw InputError(InputLocation(model.file()),
-                     fmt::format("output '{}' is {}x{} for a {}x{} input, expected 1/{} of it",
-                                 name, map.cols, map.rows, input.width, input.height, kStride));
-  }
-  return map;
 }
 
 }  // namespace
@@ -114,9 +102,12 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
             input_.begin() + static_cast<std::ptrdiff_t>(2 * plane));
 
   const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
-  const DenseMap descriptors = mapOf(outputs[0], options_.descriptors_output, fit.network, model_);
-  const DenseMap logits = mapOf(outputs[1], options_.keypoints_output, fit.network, model_);
-  const DenseMap reliability = mapOf(outputs[2], options_.reliability_output, fit.network, model_);
+  const DenseMap descriptors =
+      denseOutputMap(outputs[0], options_.descriptors_output, fit.network, model_.file(), kStride);
+  const DenseMap logits =
+      denseOutputMap(outputs[1], options_.keypoints_output, fit.network, model_.file(), kStride);
+  const DenseMap reliability =
+      denseOutputMap(outputs[2], options_.reliability_output, fit.network, model_.file(), kStride);
 
   // Detection on the part of the heatmap that shows the image (not the padding).
   const cv::Mat heatmap = cellLogitsToHeatmap(logits, kStride)(cv::Rect({0, 0}, fit.valid()));

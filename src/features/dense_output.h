@@ -1,0 +1,20 @@
+#pragma once
+// Private to the learned extractors: viewing a network's NCHW output as a DenseMap, checked to be
+// at the expected stride of the network input.
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "superdyna/features/keypoint_decoding.h"
+#include "superdyna/inference/onnx_model.h"
+
+namespace superdyna::features {
+
+/// A view of batch item 0 of `tensor` (NCHW); throws InputError naming `model_file` and the output
+/// when its spatial size is not the network input's divided by `stride`.
+DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name,
+                        cv::Size network_input, const std::filesystem::path& model_file,
+                        int stride);
+
+}  // namespace superdyna::features
