@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <optional>
@@ -78,7 +79,21 @@ class RunCommand : public Command {
 
   CLI::App* subcommand() const override { return sub_; }
 
+  /// The dataset is the user's data: never write the trajectory over one of its files.
+  void refuseOutputInsideDataset() const {
+    const fs::path output = fs::weakly_canonical(fs::absolute(output_));
+    const fs::path dataset = fs::weakly_canonical(fs::absolute(path_));
+    const auto [end, unused] =
+        std::mismatch(dataset.begin(), dataset.end(), output.begin(), output.end());
+    if (end == dataset.end() && fs::exists(output)) {
+      throw OptionError("--output", fmt::format("'{}' is a file of the dataset; refusing to "
+                                                "overwrite it",
+                                                output_.string()));
+    }
+  }
+
   int run() override {
+    refuseOutputInsideDataset();
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);

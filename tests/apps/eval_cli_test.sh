@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# End-to-end checks of `superdyna eval`, `superdyna demo` and `superdyna info`:
+# End-to-end checks of `superdyna eval`, `superdyna demo`, `superdyna info` and `run`'s output guard:
 #  1. ATE / RPE from the CLI equal an independent numpy computation (scripts/reference_eval.py)
 #     to 1e-6 relative, for SE(3) and Sim(3) alignment, on a generated flight and (when
 #     ../shared is present) on a real EuRoC ground truth with a simulated drifting estimate;
@@ -68,4 +68,11 @@ if [ -d "$euroc_dir" ]; then
 fi
 mkdir -p "$work/empty"
 expect_failure "cam0" "$superdyna" info --dataset euroc --path "$work/empty"
+# `run` never writes its trajectory over a file of the dataset.
+"$superdyna" simulate --out "$work/tiny" --duration 0.5 --dynamic none --landmarks 0 >/dev/null
+gt_csv="$work/tiny/mav0/state_groundtruth_estimate0/data.csv"
+cp "$gt_csv" "$work/gt_copy.csv"
+expect_failure "is a file of the dataset; refusing to overwrite it" \
+  "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo --output "$gt_csv"
+cmp -s "$gt_csv" "$work/gt_copy.csv" || { echo "dataset file was modified"; exit 1; }
 echo "CLI checks passed"
