@@ -5,7 +5,7 @@
 # truth (ATE, RPE; JSON and a top-view plot). Everything lands in superdyna_demo/ (DEMO_DIR).
 set -euo pipefail
 repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-"$repo_dir/scripts/setup.sh"
+"$repo_dir/scripts/setup.sh" superdyna  # the tool only; scripts/test.sh builds the tests
 build_dir=${BUILD_DIR:-"$repo_dir/build"}
 superdyna="$build_dir/bin/superdyna"
 demo_dir=${DEMO_DIR:-"$repo_dir/superdyna_demo"}

@@ -3,6 +3,7 @@
 # and builds SuperDynaSLAM into build/. Safe to run again: installed packages and an up-to-date
 # build are detected and skipped. Works as root or through sudo.
 #
+# Usage: scripts/setup.sh [TARGET...]   (default: every target, tests included)
 # Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default nproc),
 #              SUPERDYNA_WERROR=ON to turn warnings into errors (CI does).
 set -euo pipefail
@@ -62,10 +63,14 @@ configure_and_build() {
   cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" \
     -DSUPERDYNA_WERROR="${SUPERDYNA_WERROR:-OFF}" >/dev/null
   echo "[setup] building with $jobs jobs"
-  cmake --build "$build_dir" -j "$jobs"
+  # Targets given as arguments (e.g. `setup.sh superdyna`) build only those; none builds all.
+  local targets=()
+  local target
+  for target in "$@"; do targets+=(--target "$target"); done
+  cmake --build "$build_dir" -j "$jobs" "${targets[@]}"
 }
 
 install_dependencies
 bash "$repo_dir/scripts/install_onnxruntime.sh"  # not packaged by Debian: see the script
-configure_and_build
+configure_and_build "$@"
 echo "[setup] done: $build_dir/bin/superdyna"
