@@ -25,8 +25,8 @@ class DemoCommand : public Command {
   explicit DemoCommand(CLI::App& app) {
     sub_ = app.add_subcommand(
         "demo",
-        "Built-in default job: generate a flight, simulate a drifting estimate of it in an unknown "
-        "frame and scale, and evaluate it (ATE after SE(3) and Sim(3) alignment, RPE)");
+        "Evaluation demo without SLAM: generate a flight, simulate a drifting estimate of it in an "
+        "unknown frame and scale, and evaluate it (ATE after SE(3) and Sim(3) alignment, RPE)");
     sub_->add_option("--out", out_, "Output folder (trajectories, JSON reports, plot)")
         ->capture_default_str();
     sub_->add_option("--gt", gt_file_,

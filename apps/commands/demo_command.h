@@ -6,7 +6,7 @@
 
 namespace superdyna::apps {
 
-/// `superdyna demo`: the built-in default job (an evaluation demo until the SLAM pipeline lands).
+/// `superdyna demo`: a SLAM-free demo of the evaluation tool (the quick start runs SLAM itself).
 std::unique_ptr<Command> makeDemoCommand(CLI::App& app);
 
 }  // namespace superdyna::apps
