@@ -20,4 +20,29 @@ DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name
   return map;
 }
 
+FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
+                                  const DenseMap& descriptor_map, const ImageFit& fit,
+                                  cv::Size image_size, int stride) {
+  std::vector<Eigen::Vector2d> pixels;
+  pixels.reserve(points.size());
+  for (const auto& p : points)
+    pixels.emplace_back(p.x, p.y);
+
+  FeatureSet features;
+  features.descriptor_type = DescriptorType::kFloat;
+  features.image_size = image_size;
+  features.descriptors = sampleDescriptors(descriptor_map, pixels, stride);
+  features.keypoints.reserve(points.size());
+  const float size =
+      static_cast<float>(stride * fit.original.width) / static_cast<float>(fit.network.width);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    Keypoint kp;
+    kp.pixel = fit.toOriginal(pixels[i]);
+    kp.response = points[i].score;
+    kp.size = size;
+    features.keypoints.push_back(kp);
+  }
+  return features;
+}
+
 }  // namespace superdyna::features

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "superdyna/features/feature_set.h"
 #include "superdyna/features/keypoint_decoding.h"
 #include "superdyna/inference/onnx_model.h"
 
@@ -16,5 +17,11 @@ namespace superdyna::features {
 DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name,
                         cv::Size network_input, const std::filesystem::path& model_file,
                         int stride);
+
+/// The keypoints (in the original image's pixels, score as response) and their descriptors
+/// sampled from `descriptor_map` at stride `stride` of the network input, as one FeatureSet.
+FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
+                                  const DenseMap& descriptor_map, const ImageFit& fit,
+                                  cv::Size image_size, int stride);
 
 }  // namespace superdyna::features

@@ -130,24 +130,7 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
   points = keepInside(points, options_.border, heatmap.size());
   points = selectTopK(std::move(points), options_.max_keypoints, options_.grid_cell_px);
 
-  std::vector<Eigen::Vector2d> pixels;
-  pixels.reserve(points.size());
-  for (const auto& p : points)
-    pixels.emplace_back(p.x, p.y);
-
-  FeatureSet features;
-  features.descriptor_type = DescriptorType::kFloat;
-  features.image_size = gray.size();
-  features.descriptors = sampleDescriptors(desc, pixels, kStride);
-  features.keypoints.reserve(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    Keypoint kp;
-    kp.pixel = fit.toOriginal(pixels[i]);
-    kp.response = points[i].score;
-    kp.size =
-        static_cast<float>(kStride * fit.original.width) / static_cast<float>(fit.network.width);
-    features.keypoints.push_back(kp);
-  }
+  FeatureSet features = scoredPixelsToFeatures(points, desc, fit, gray.size(), kStride);
   last_extract_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return features;

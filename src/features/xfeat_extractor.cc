@@ -119,27 +119,11 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
   }
   points = selectTopK(std::move(points), options_.max_keypoints, options_.grid_cell_px);
 
-  std::vector<Eigen::Vector2d> pixels;
-  pixels.reserve(points.size());
-  for (const auto& p : points)
-    pixels.emplace_back(p.x, p.y);
   const std::vector<float> unit_cells = normalizeCells(descriptors);
   const DenseMap unit_map{unit_cells.data(), descriptors.channels, descriptors.rows,
                           descriptors.cols};
 
-  FeatureSet features;
-  features.descriptor_type = DescriptorType::kFloat;
-  features.image_size = gray.size();
-  features.descriptors = sampleDescriptors(unit_map, pixels, kStride);
-  features.keypoints.reserve(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    Keypoint kp;
-    kp.pixel = fit.toOriginal(pixels[i]);
-    kp.response = points[i].score;
-    kp.size =
-        static_cast<float>(kStride * fit.original.width) / static_cast<float>(fit.network.width);
-    features.keypoints.push_back(kp);
-  }
+  FeatureSet features = scoredPixelsToFeatures(points, unit_map, fit, gray.size(), kStride);
   last_extract_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return features;
