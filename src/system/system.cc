@@ -25,6 +25,7 @@ bool usesImu(SensorMode mode) {
 }
 
 void SystemOptions::validate() const {
+  front_end.validate();
   tracker.validate();
   mapping.validate();
 }
@@ -40,18 +41,22 @@ SystemOptions checkedOptions(SystemOptions options) {
 }  // namespace
 
 System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
-               const io::CameraCalibration& cam1, const std::optional<io::ImuCalibration>& imu)
+               const std::optional<io::CameraCalibration>& cam1,
+               const std::optional<io::ImuCalibration>& imu)
     : options_(checkedOptions(options)),
-      tracker_(options_.tracker, options_.mapping, cam0, cam1,
-               usesImu(options_.mode) ? imu : std::nullopt) {
+      front_end_(options_.front_end, cam0, cam1),
+      tracker_(
+          options_.tracker,
+          tracking::PyramidInfo{options_.front_end.orb.scale_factor, options_.front_end.orb.levels},
+          options_.mapping, cam0, cam1, usesImu(options_.mode) ? imu : std::nullopt) {
   if (usesImu(options_.mode) && !imu) {
     throw OptionError("--mode", "stereo-inertial needs IMU calibration and samples");
   }
 }
 
-tracking::TrackingResult System::process(const io::FrameBundle& frame) {
-  const tracking::TrackingResult result = tracker_.track(frame);
-  trajectory_.push_back({frame.t_ns, result.T_w_b});
+tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
+  const tracking::TrackingResult result = tracker_.track(front_end_.build(bundle));
+  trajectory_.push_back({bundle.t_ns, result.T_w_b});
   ++timings_.frames;
   if (result.keyframe) ++timings_.keyframes;
   timings_.total.extract_ms += result.times.extract_ms;

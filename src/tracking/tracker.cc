@@ -18,26 +18,9 @@ double millisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-Eigen::Vector2d notANumber() {
-  return Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
-}
-
-Eigen::Vector2d normalizedOf(const CameraModel& camera, const Eigen::Vector2d& pixel) {
-  const auto bearing = camera.unproject(pixel);
-  if (!bearing || !((*bearing).z() > 1e-6)) return notANumber();
-  return Eigen::Vector2d(bearing->x() / bearing->z(), bearing->y() / bearing->z());
-}
-
 }  // namespace
 
-int StereoFrame::numStereo() const {
-  return static_cast<int>(
-      std::count_if(depth_m.begin(), depth_m.end(), [](double d) { return d > 0.0; }));
-}
-
 void TrackerOptions::validate() const {
-  orb.validate();
-  stereo.validate();
   projection.validate();
   pose.validate();
   if (!(wide_radius_px > 0.0)) throw OptionError("tracker.wide_radius_px", "must be > 0");
@@ -75,62 +58,42 @@ const char* toString(TrackingState state) {
   return "?";
 }
 
-Tracker::Tracker(const TrackerOptions& options, const mapping::LocalMapperOptions& mapping,
-                 const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+namespace {
+
+std::vector<optim::ReprojectionCamera> rigCameras(
+    const io::CameraCalibration& cam0, const std::optional<io::CameraCalibration>& cam1) {
+  std::vector<optim::ReprojectionCamera> cameras{
+      optim::ReprojectionCamera::from(cam0.cameraModel(), cam0.T_b_c)};
+  if (cam1) cameras.push_back(optim::ReprojectionCamera::from(cam1->cameraModel(), cam1->T_b_c));
+  return cameras;
+}
+
+}  // namespace
+
+Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
+                 const mapping::LocalMapperOptions& mapping, const io::CameraCalibration& cam0,
+                 const std::optional<io::CameraCalibration>& cam1,
                  const std::optional<io::ImuCalibration>& imu)
     : options_(options),
+      pyramid_(pyramid),
       camera0_(cam0.cameraModel()),
       T_b_c0_(cam0.T_b_c),
-      left_extractor_(options.orb),
-      right_extractor_(options.orb),
-      stereo_matcher_(cam0, cam1, options.stereo),
       pose_optimizer_(options.pose),
-      cameras_{optim::ReprojectionCamera::from(cam0.cameraModel(), cam0.T_b_c),
-               optim::ReprojectionCamera::from(cam1.cameraModel(), cam1.T_b_c)},
+      cameras_(rigCameras(cam0, cam1)),
       imu_(options.use_imu ? imu : std::nullopt),
-      baseline_m_((cam0.T_b_c.inverse() * cam1.T_b_c).t.norm()),
+      baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
       mapper_(mapping, cameras_) {
   options_.validate();
 }
 
-StereoFrame Tracker::buildFrame(const io::FrameBundle& bundle, StageTimes& times) {
-  StereoFrame frame;
-  frame.t_ns = bundle.t_ns;
-  auto start = Clock::now();
-  frame.features = left_extractor_.extract(bundle.image0);
-  const features::FeatureSet right = right_extractor_.extract(bundle.image1);
-  times.extract_ms = millisecondsSince(start);
-
-  start = Clock::now();
-  const std::size_t n = frame.features.size();
-  frame.normalized.resize(n);
-  frame.depth_m.assign(n, -1.0);
-  frame.p_c0.assign(n, Eigen::Vector3d::Zero());
-  frame.right_normalized.assign(n, std::nullopt);
-  for (std::size_t i = 0; i < n; ++i)
-    frame.normalized[i] = normalizedOf(camera0_, frame.features.keypoints[i].pixel);
-  for (const features::StereoMatch& m : stereo_matcher_.match(frame.features, right)) {
-    const auto i = static_cast<std::size_t>(m.left);
-    if (!frame.normalized[i].allFinite()) continue;
-    const Eigen::Vector2d r = normalizedOf(
-        stereo_matcher_.camera1(), right.keypoints[static_cast<std::size_t>(m.right)].pixel);
-    if (!r.allFinite()) continue;
-    frame.depth_m[i] = m.depth_m;
-    frame.p_c0[i] = m.p_c0;
-    frame.right_normalized[i] = r;
-  }
-  times.stereo_ms = millisecondsSince(start);
-  return frame;
-}
-
-Tracker::Prediction Tracker::predictPose(const io::FrameBundle& bundle) const {
+Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
   if (!has_last_) return {};
   SE3d motion = has_motion_ ? motion_ : SE3d();
-  const auto& samples = bundle.imu;
+  const auto& samples = frame.imu;
   if (imu_ && samples.size() >= 2 && samples.front().t_ns <= t_last_ns_ &&
-      samples.back().t_ns >= bundle.t_ns && bundle.t_ns > t_last_ns_) {
+      samples.back().t_ns >= frame.t_ns && frame.t_ns > t_last_ns_) {
     imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
-    preintegration.integrateBetween(samples, t_last_ns_, bundle.t_ns);
+    preintegration.integrateBetween(samples, t_last_ns_, frame.t_ns);
     if (options_.imu_translation_prediction && has_velocity_) {
       return {predictWithImu(preintegration), true};
     }
@@ -163,11 +126,11 @@ std::optional<optim::PosePrior> Tracker::rotationPrior(const Prediction& predict
   return prior;
 }
 
-SE3d Tracker::initialPose(const io::FrameBundle& bundle, const SE3d& predicted) const {
+SE3d Tracker::initialPose(const Frame& frame, const SE3d& predicted) const {
   if (has_last_) return predicted;  // a reset keeps the world frame of the lost map
-  if (!imu_ || bundle.imu.empty()) return SE3d();
+  if (!imu_ || frame.imu.empty()) return SE3d();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
-  for (const io::ImuSample& s : bundle.imu)
+  for (const io::ImuSample& s : frame.imu)
     accel += s.accel;
   const Eigen::Vector3d up_b = imu_->T_b_i.rotation() * accel;
   if (!(up_b.norm() > 1e-6)) return SE3d();
@@ -175,16 +138,17 @@ SE3d Tracker::initialPose(const io::FrameBundle& bundle, const SE3d& predicted) 
               Eigen::Vector3d::Zero());
 }
 
-TrackingResult Tracker::track(const io::FrameBundle& bundle) {
+TrackingResult Tracker::track(const Frame& frame) {
   TrackingResult result;
-  const StereoFrame frame = buildFrame(bundle, result.times);
+  result.times.extract_ms = frame.extract_ms;
+  result.times.stereo_ms = frame.stereo_ms;
   const auto start = Clock::now();
-  const Prediction prediction = predictPose(bundle);
+  const Prediction prediction = predictPose(frame);
   result.T_w_b = prediction.T_w_b;
   if (!has_map_) {
-    initializeAt(frame, initialPose(bundle, prediction.T_w_b), result);
+    initializeAt(frame, initialPose(frame, prediction.T_w_b), result);
     result.times.track_ms = millisecondsSince(start);
-    updateMotion(result.T_w_b, bundle.t_ns);
+    updateMotion(result.T_w_b, frame.t_ns);
     return result;
   }
   const std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result);
@@ -196,11 +160,11 @@ TrackingResult Tracker::track(const io::FrameBundle& bundle) {
     result.state = TrackingState::kTracking;
     if (needKeyFrame(frame, result.inliers)) addKeyFrameAndMap(frame, tracked, result);
   }
-  updateMotion(result.T_w_b, bundle.t_ns);
+  updateMotion(result.T_w_b, frame.t_ns);
   return result;
 }
 
-void Tracker::initializeAt(const StereoFrame& frame, const SE3d& T_w_b, TrackingResult& result) {
+void Tracker::initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result) {
   result.T_w_b = T_w_b;
   if (frame.numStereo() < options_.min_inliers) return;  // stays lost: nothing to build a map on
   startMap(frame, T_w_b);
@@ -208,7 +172,7 @@ void Tracker::initializeAt(const StereoFrame& frame, const SE3d& T_w_b, Tracking
   result.keyframe = true;
 }
 
-std::vector<map::MapPointId> Tracker::trackLocalMap(const StereoFrame& frame,
+std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
                                                     const Prediction& prediction,
                                                     TrackingResult& result) {
   std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
@@ -233,8 +197,7 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const StereoFrame& frame,
   return tracked;
 }
 
-void Tracker::addKeyFrameAndMap(const StereoFrame& frame,
-                                const std::vector<map::MapPointId>& tracked,
+void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                                 TrackingResult& result) {
   const auto start = Clock::now();
   const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked);
@@ -245,7 +208,7 @@ void Tracker::addKeyFrameAndMap(const StereoFrame& frame,
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(
-    const StereoFrame& frame, const std::vector<LocalPoint>& points,
+    const Frame& frame, const std::vector<LocalPoint>& points,
     const std::vector<features::Match>& matches) const {
   std::vector<optim::PoseObservation> observations;
   const auto observe = [&](const features::Match& m, int camera, const Eigen::Vector2d& xy) {
@@ -282,12 +245,12 @@ void Tracker::updateMotion(const SE3d& T_w_b, TimeNs t_ns) {
   has_last_ = true;
 }
 
-void Tracker::startMap(const StereoFrame& frame, const SE3d& T_w_b) {
+void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   if (map_) ++resets_;
   map::MapOptions map_options;
   map_options.T_b_c = {T_b_c0_};
-  map_options.scale_factor = options_.orb.scale_factor;
-  map_options.num_levels = options_.orb.levels;
+  map_options.scale_factor = pyramid_.scale_factor;
+  map_options.num_levels = pyramid_.levels;
   map_ = std::make_unique<map::Map>(map_options);
   mapper_.reset();
   point_keypoint_.clear();
@@ -316,7 +279,7 @@ std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
   return points;
 }
 
-std::vector<features::Match> Tracker::matchLocalPoints(const StereoFrame& frame,
+std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
                                                        const std::vector<LocalPoint>& points,
                                                        const SE3d& T_w_b) {
   features::FeatureSet query;
@@ -359,7 +322,7 @@ std::vector<features::Match> Tracker::matchLocalPoints(const StereoFrame& frame,
   return usable;
 }
 
-bool Tracker::needKeyFrame(const StereoFrame& frame, int inliers) const {
+bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (frame.numStereo() < options_.keyframe_min_stereo) return false;
   if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
@@ -381,7 +344,7 @@ int Tracker::referenceTrackedPoints() const {
   return tracked;
 }
 
-map::KeyFrameId Tracker::insertKeyFrame(const StereoFrame& frame, const SE3d& T_w_b,
+map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
                                         const std::vector<map::MapPointId>& tracked) {
   map::KeyFrame kf;
   kf.t_ns = frame.t_ns;
@@ -408,7 +371,7 @@ map::KeyFrameId Tracker::insertKeyFrame(const StereoFrame& frame, const SE3d& T_
 }
 
 std::vector<map::MapPointId> Tracker::createStereoPoints(
-    const StereoFrame& frame, const SE3d& T_w_b, map::KeyFrameId keyframe,
+    const Frame& frame, const SE3d& T_w_b, map::KeyFrameId keyframe,
     const std::vector<map::MapPointId>& tracked) {
   std::vector<std::size_t> candidates;
   for (std::size_t i = 0; i < frame.size(); ++i) {

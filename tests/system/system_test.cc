@@ -78,7 +78,7 @@ TEST(OptionsFile, SetsKnownKeysAndRejectsUnknownOnes) {
                   "orb:\n  features: 900\ntracker:\n  min_inliers: 20\nmapping:\n"
                   "  window_keyframes: 5\nprojection:\n  check_orientation: false\n");
   const SystemOptions options = loadSystemOptions(dir / "ok.yaml");
-  EXPECT_EQ(options.tracker.orb.features, 900);
+  EXPECT_EQ(options.front_end.orb.features, 900);
   EXPECT_EQ(options.tracker.min_inliers, 20);
   EXPECT_EQ(options.mapping.window_keyframes, 5);
   EXPECT_FALSE(options.tracker.projection.check_orientation);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "superdyna/sim/sequence_generator.h"
+#include "superdyna/tracking/front_end.h"
 #include "support/test_support.h"
 
 namespace superdyna::tracking {
@@ -24,8 +25,13 @@ io::CameraCalibration calibrationOf(const sim::RigOptions& rig, const SE3d& T_b_
 
 Tracker makeTracker(const TrackerOptions& options = {}) {
   const sim::RigOptions rig;
-  return Tracker(options, mapping::LocalMapperOptions{}, calibrationOf(rig, rig.T_b_c0()),
-                 calibrationOf(rig, rig.T_b_c1()), std::nullopt);
+  return Tracker(options, PyramidInfo{}, mapping::LocalMapperOptions{},
+                 calibrationOf(rig, rig.T_b_c0()), calibrationOf(rig, rig.T_b_c1()), std::nullopt);
+}
+
+FrontEnd makeFrontEnd(const FrontEndOptions& options = {}) {
+  const sim::RigOptions rig;
+  return FrontEnd(options, calibrationOf(rig, rig.T_b_c0()), calibrationOf(rig, rig.T_b_c1()));
 }
 
 TEST(TrackerOptions, RejectsBadValues) {
@@ -36,12 +42,16 @@ TEST(TrackerOptions, RejectsBadValues) {
   options.keyframe_tracked_ratio = 1.5;
   test::expectError<OptionError>([&] { options.validate(); }, {"tracker.keyframe_tracked_ratio"});
   options = {};
-  options.orb.features = 0;
-  test::expectError<OptionError>([&] { makeTracker(options); }, {"features"});
+  options.projection.radius_px = 0.0;
+  test::expectError<OptionError>([&] { makeTracker(options); }, {"radius"});
+  FrontEndOptions front_end;
+  front_end.orb.features = 0;
+  test::expectError<OptionError>([&] { makeFrontEnd(front_end); }, {"features"});
 }
 
 TEST(Tracker, BlankImagesDoNotInitialiseOrCrash) {
   Tracker tracker = makeTracker();
+  FrontEnd front_end = makeFrontEnd();
   const sim::RigOptions rig;
   for (int i = 0; i < 3; ++i) {
     io::FrameBundle frame;
@@ -49,7 +59,7 @@ TEST(Tracker, BlankImagesDoNotInitialiseOrCrash) {
     frame.t_ns = secondsToNs(0.05 * i);
     frame.image0 = cv::Mat::zeros(rig.height, rig.width, CV_8UC1);
     frame.image1 = frame.image0.clone();
-    const TrackingResult result = tracker.track(frame);
+    const TrackingResult result = tracker.track(front_end.build(frame));
     EXPECT_EQ(result.state, TrackingState::kLost);
     EXPECT_FALSE(result.keyframe);
     EXPECT_TRUE(result.T_w_b.t.isZero());

@@ -11,6 +11,7 @@
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/mapping/local_mapper.h"
+#include "superdyna/tracking/front_end.h"
 #include "superdyna/tracking/tracker.h"
 
 namespace superdyna::system {
@@ -24,6 +25,7 @@ bool usesImu(SensorMode mode);
 
 struct SystemOptions {
   SensorMode mode = SensorMode::kStereo;
+  tracking::FrontEndOptions front_end;
   tracking::TrackerOptions tracker;
   mapping::LocalMapperOptions mapping;
   bool deterministic = true;  ///< Sequential, single-threaded solvers (the only mode so far).
@@ -45,9 +47,10 @@ struct TimingSummary {
 class System {
  public:
   System(const SystemOptions& options, const io::CameraCalibration& cam0,
-         const io::CameraCalibration& cam1, const std::optional<io::ImuCalibration>& imu);
+         const std::optional<io::CameraCalibration>& cam1,
+         const std::optional<io::ImuCalibration>& imu);
 
-  tracking::TrackingResult process(const io::FrameBundle& frame);
+  tracking::TrackingResult process(const io::FrameBundle& bundle);
 
   const Trajectory& trajectory() const { return trajectory_; }
   const TimingSummary& timings() const { return timings_; }
@@ -58,6 +61,7 @@ class System {
 
  private:
   SystemOptions options_;
+  tracking::FrontEnd front_end_;
   tracking::Tracker tracker_;
   Trajectory trajectory_;
   TimingSummary timings_;

@@ -1,7 +1,7 @@
 #pragma once
 // Stereo (optionally IMU-aided) tracking against a local map, sequential and deterministic.
 //
-// Per frame: ORB on both images, stereo matching (keypoints with depth), pose prediction (constant
+// Per frame (built by the FrontEnd: features, stereo depth): pose prediction (constant
 // velocity; with IMU samples the rotation comes from gyroscope preintegration), projection of the
 // local map (points of the reference keyframe and its best covisible keyframes), matching by
 // projection, motion-only BA, keyframe decision, new stereo map points and local BA. Fewer inliers
@@ -16,20 +16,16 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/features/matcher.h"
-#include "superdyna/features/orb_extractor.h"
-#include "superdyna/features/stereo_matcher.h"
 #include "superdyna/imu/preintegration.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/optim/pose_optimizer.h"
-#include "superdyna/tracking/stereo_frame.h"
+#include "superdyna/tracking/frame.h"
 
 namespace superdyna::tracking {
 
 struct TrackerOptions {
-  features::OrbOptions orb;                     ///< Extractor of both cameras.
-  features::StereoMatchOptions stereo;          ///< Left-right matching.
   features::ProjectionMatchOptions projection;  ///< Map-to-frame matching (radius 15 px).
   double wide_radius_px = 40.0;                 ///< Radius of the retry when too few matches, > 0.
   int min_projection_matches = 40;              ///< Fewer matches trigger the wide retry, >= 0.
@@ -69,13 +65,22 @@ struct TrackingResult {
   StageTimes times;
 };
 
+/// Scale pyramid of the extractor (map points predict the octave they are seen at).
+struct PyramidInfo {
+  double scale_factor = 1.2;
+  int levels = 8;
+};
+
 class Tracker {
  public:
-  Tracker(const TrackerOptions& options, const mapping::LocalMapperOptions& mapping,
-          const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+  /// cam1 absent = monocular rig.
+  Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
+          const mapping::LocalMapperOptions& mapping, const io::CameraCalibration& cam0,
+          const std::optional<io::CameraCalibration>& cam1,
           const std::optional<io::ImuCalibration>& imu);
 
-  TrackingResult track(const io::FrameBundle& bundle);
+  /// Tracks one frame built by the FrontEnd (frames in time order).
+  TrackingResult track(const Frame& frame);
 
   const map::Map& map() const { return *map_; }
   int resets() const { return resets_; }
@@ -86,42 +91,40 @@ class Tracker {
     Eigen::Vector3d p_w = Eigen::Vector3d::Zero();
   };
 
-  StereoFrame buildFrame(const io::FrameBundle& bundle, StageTimes& times);
   struct Prediction {
     SE3d T_w_b;
     bool from_imu = false;  ///< Rotation from gyroscope preintegration.
   };
-  Prediction predictPose(const io::FrameBundle& bundle) const;
+  Prediction predictPose(const Frame& frame) const;
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
-  SE3d initialPose(const io::FrameBundle& bundle, const SE3d& predicted) const;
-  void initializeAt(const StereoFrame& frame, const SE3d& T_w_b, TrackingResult& result);
-  void startMap(const StereoFrame& frame, const SE3d& T_w_b);
-  std::vector<map::MapPointId> trackLocalMap(const StereoFrame& frame, const Prediction& prediction,
+  SE3d initialPose(const Frame& frame, const SE3d& predicted) const;
+  void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
+  void startMap(const Frame& frame, const SE3d& T_w_b);
+  std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
                                              TrackingResult& result);
-  void addKeyFrameAndMap(const StereoFrame& frame, const std::vector<map::MapPointId>& tracked,
+  void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                          TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;
-  std::vector<features::Match> matchLocalPoints(const StereoFrame& frame,
+  std::vector<features::Match> matchLocalPoints(const Frame& frame,
                                                 const std::vector<LocalPoint>& points,
                                                 const SE3d& T_w_b);
   std::vector<optim::PoseObservation> poseObservations(
-      const StereoFrame& frame, const std::vector<LocalPoint>& points,
+      const Frame& frame, const std::vector<LocalPoint>& points,
       const std::vector<features::Match>& matches) const;
-  bool needKeyFrame(const StereoFrame& frame, int inliers) const;
+  bool needKeyFrame(const Frame& frame, int inliers) const;
   int referenceTrackedPoints() const;
-  map::KeyFrameId insertKeyFrame(const StereoFrame& frame, const SE3d& T_w_b,
+  map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
                                  const std::vector<map::MapPointId>& tracked);
-  std::vector<map::MapPointId> createStereoPoints(const StereoFrame& frame, const SE3d& T_w_b,
+  std::vector<map::MapPointId> createStereoPoints(const Frame& frame, const SE3d& T_w_b,
                                                   map::KeyFrameId keyframe,
                                                   const std::vector<map::MapPointId>& tracked);
   void updateMotion(const SE3d& T_w_b, TimeNs t_ns);
 
   TrackerOptions options_;
+  PyramidInfo pyramid_;
   CameraModel camera0_;
   SE3d T_b_c0_;
-  features::OrbExtractor left_extractor_, right_extractor_;
-  features::StereoMatcher stereo_matcher_;
   optim::PoseOptimizer pose_optimizer_;
   std::vector<optim::ReprojectionCamera> cameras_;
   std::optional<io::ImuCalibration> imu_;

@@ -1,7 +1,8 @@
 #pragma once
-// One stereo frame prepared for tracking: the left features, their undistorted normalised
-// coordinates and, where the stereo matcher found a partner, the depth, the point in cam0 and the
-// normalised coordinates of the partner in the right camera.
+// One frame prepared for tracking: the left (cam0) features, their undistorted normalised
+// coordinates and, in stereo modes where the stereo matcher found a partner, the depth, the point
+// in cam0 and the normalised coordinates of the partner in the right camera; plus the IMU samples
+// that bracket the interval since the previous frame.
 
 #include <Eigen/Core>
 #include <optional>
@@ -9,10 +10,12 @@
 
 #include "superdyna/core/time.h"
 #include "superdyna/features/feature_set.h"
+#include "superdyna/io/dataset_source.h"
 
 namespace superdyna::tracking {
 
-struct StereoFrame {
+struct Frame {
+  std::size_t index = 0;  ///< Position in the input sequence.
   TimeNs t_ns = 0;
   features::FeatureSet features;  ///< Left (cam0) features.
   /// Undistorted normalised coordinates per left keypoint; NaN when undistortion failed.
@@ -20,6 +23,9 @@ struct StereoFrame {
   std::vector<double> depth_m;        ///< Depth in cam0 per keypoint [m]; -1 = no stereo.
   std::vector<Eigen::Vector3d> p_c0;  ///< Stereo point in cam0 [m] (valid when depth_m > 0).
   std::vector<std::optional<Eigen::Vector2d>> right_normalized;  ///< Partner in cam1, if any.
+  std::vector<io::ImuSample> imu;  ///< IMU samples bracketing (previous frame, t_ns].
+  double extract_ms = 0.0;         ///< Time spent on feature extraction.
+  double stereo_ms = 0.0;          ///< Time spent on stereo matching.
 
   std::size_t size() const { return features.size(); }
   bool hasStereo(std::size_t i) const { return depth_m[i] > 0.0; }
