@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -26,13 +27,56 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-void printTimings(const system::TimingSummary& t) {
+void printTimings(const system::SystemOptions& options, const system::TimingSummary& t) {
   fmt::print(
-      "timing per frame (mean ms): extract {:.2f}, stereo {:.2f}, track {:.2f}, local BA {:.2f} "
-      "({} keyframes; local BA per keyframe {:.2f} ms)\n",
+      "timing per frame (mean ms): extract {:.2f}, stereo {:.2f}, track {:.2f}, keyframe + local "
+      "BA {:.2f} ({} keyframes; per keyframe {:.2f} ms)\n",
       t.meanMs(t.total.extract_ms), t.meanMs(t.total.stereo_ms), t.meanMs(t.total.track_ms),
       t.meanMs(t.total.local_ba_ms), t.keyframes,
       t.keyframes > 0 ? t.total.local_ba_ms / static_cast<double>(t.keyframes) : 0.0);
+  if (options.deterministic) {
+    fmt::print(
+        "pipeline: deterministic (sequential), {:.1f} FPS wall clock over {:.2f} s; CPU time "
+        "{:.1f} s ({:.1f} ms per frame)\n",
+        t.framesPerSecond(), t.wall_s, (t.busy.front_end_ms + t.busy.tracking_ms) / 1e3,
+        t.meanMs(t.busy.front_end_ms + t.busy.tracking_ms));
+    return;
+  }
+  const auto busy = [&](double ms) {
+    return fmt::format("{:.1f} s ({:.0f} %)", ms / 1e3,
+                       t.wall_s > 0 ? ms / (10.0 * t.wall_s) : 0.0);
+  };
+  fmt::print(
+      "pipeline: concurrent, {:.1f} FPS wall clock over {:.2f} s; thread CPU time (share of the "
+      "wall clock): front end {}, tracking {}, local mapping {}\n",
+      t.framesPerSecond(), t.wall_s, busy(t.busy.front_end_ms), busy(t.busy.tracking_ms),
+      busy(t.busy.mapping_ms));
+}
+
+/// Prints a progress line at most about once a second.
+class ProgressLine {
+ public:
+  void update(std::size_t frames, std::size_t total, const tracking::TrackingResult& result,
+              const system::System& slam) {
+    const auto now = Clock::now();
+    if (now - last_ < std::chrono::seconds(1)) return;
+    last_ = now;
+    fmt::print("frame {:5d}/{}  {:6.1f} FPS  {:<11}  keyframes {:4d}  points {:6d}\n", frames,
+               total, static_cast<double>(frames) / secondsSince(start_),
+               tracking::toString(result.state), slam.numKeyFrames(), slam.numMapPoints());
+    std::fflush(stdout);
+  }
+
+ private:
+  Clock::time_point start_ = Clock::now();
+  Clock::time_point last_ = start_;
+};
+
+/// <stem>_keyframes<extension> next to the frame trajectory.
+fs::path defaultKeyFramesPath(const fs::path& output) {
+  fs::path path = output;
+  path.replace_filename(output.stem().string() + "_keyframes" + output.extension().string());
+  return path;
 }
 
 void printAccuracy(const Trajectory& gt, const Trajectory& estimate) {
@@ -73,31 +117,46 @@ class RunCommand : public Command {
         ->capture_default_str();
     sub_->add_option("--config", config_, "YAML options file (configs/*.yaml)")
         ->check(CLI::ExistingFile);
+    sub_->add_option("--keyframes", keyframes_,
+                     "Keyframe trajectory file (same --format; default: <output "
+                     "stem>_keyframes<output extension> beside --output)");
     sub_->add_flag("--deterministic", deterministic_,
-                   "Sequential, single-threaded run: bit-identical output for the same input");
+                   "Sequential, single-threaded run: bit-identical output for the same input "
+                   "(default: concurrent front end, tracking and local mapping threads)");
   }
 
   CLI::App* subcommand() const override { return sub_; }
 
-  /// The dataset is the user's data: never write the trajectory over one of its files.
-  void refuseOutputInsideDataset() const {
-    const fs::path output = fs::weakly_canonical(fs::absolute(output_));
+  /// The dataset is the user's data: never write a result over one of its files.
+  void refuseOutputInsideDataset(const fs::path& file, const std::string& option) const {
+    const fs::path output = fs::weakly_canonical(fs::absolute(file));
     const fs::path dataset = fs::weakly_canonical(fs::absolute(path_));
     const auto [end, unused] =
         std::mismatch(dataset.begin(), dataset.end(), output.begin(), output.end());
     if (end == dataset.end() && fs::exists(output)) {
-      throw OptionError("--output", fmt::format("'{}' is a file of the dataset; refusing to "
-                                                "overwrite it",
-                                                output_.string()));
+      throw OptionError(option, fmt::format("'{}' is a file of the dataset; refusing to "
+                                            "overwrite it",
+                                            file.string()));
     }
   }
 
+  fs::path keyFramesPath() const {
+    const fs::path path = keyframes_ ? *keyframes_ : defaultKeyFramesPath(output_);
+    if (fs::weakly_canonical(fs::absolute(path)) == fs::weakly_canonical(fs::absolute(output_))) {
+      throw OptionError("--keyframes",
+                        fmt::format("'{}' is also the --output file", path.string()));
+    }
+    return path;
+  }
+
   int run() override {
-    refuseOutputInsideDataset();
+    refuseOutputInsideDataset(output_, "--output");
+    const fs::path keyframes_path = keyFramesPath();
+    refuseOutputInsideDataset(keyframes_path, "--keyframes");
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
-    options.deterministic = options.deterministic || deterministic_;
+    options.deterministic = deterministic_;
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
     io::DatasetSourceOptions source_options;
@@ -108,25 +167,23 @@ class RunCommand : public Command {
     if (!source->camera1()) throw OptionError("--mode", "stereo modes need a second camera");
     system::System slam(options, source->camera0(), *source->camera1(), source->imu());
 
-    fmt::print("running {} SLAM on {} ({} frames)\n", system::toString(options.mode),
-               path_.string(), source->size());
-    const auto start = Clock::now();
-    while (const auto frame = source->next()) {
-      const tracking::TrackingResult result = slam.process(*frame);
-      const std::size_t done = slam.timings().frames;
-      if (done % 50 == 0) {
-        fmt::print("frame {:5d}  {:6.1f} FPS  {:<11}  keyframes {:4d}  points {:6d}\n", done,
-                   static_cast<double>(done) / secondsSince(start),
-                   tracking::toString(result.state), slam.numKeyFrames(), slam.numMapPoints());
-      }
-    }
-    const double seconds = secondsSince(start);
+    fmt::print("running {} SLAM ({}) on {} ({} frames)\n", system::toString(options.mode),
+               options.deterministic ? "deterministic" : "concurrent", path_.string(),
+               source->size());
+    ProgressLine progress;
+    slam.run(*source, [&](const tracking::TrackingResult& result) {
+      progress.update(slam.timings().frames, source->size(), result, slam);
+    });
+    const system::TimingSummary& t = slam.timings();
+    const Trajectory keyframes = slam.keyFrameTrajectory();
     io::writeTrajectory(output_, slam.trajectory(), format);
-    fmt::print("{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}; wrote {}\n",
-               slam.timings().frames, seconds,
-               static_cast<double>(slam.timings().frames) / std::max(seconds, 1e-9),
-               slam.lostFrames(), slam.resets(), output_.string());
-    printTimings(slam.timings());
+    io::writeTrajectory(keyframes_path, keyframes, format);
+    fmt::print(
+        "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}; wrote {} and {} "
+        "({} keyframes)\n",
+        t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
+        keyframes_path.string(), keyframes.size());
+    printTimings(slam.options(), t);
     printAccuracy(source->groundTruth(), slam.trajectory());
     return 0;
   }
@@ -137,6 +194,7 @@ class RunCommand : public Command {
   fs::path path_;
   std::string mode_ = "stereo";
   fs::path output_;
+  std::optional<fs::path> keyframes_;
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;
   std::optional<fs::path> config_;

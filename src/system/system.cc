@@ -1,5 +1,12 @@
 #include "superdyna/system/system.h"
 
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <thread>
+#include <utility>
+
+#include "superdyna/core/bounded_queue.h"
 #include "superdyna/core/error.h"
 
 namespace superdyna::system {
@@ -28,9 +35,17 @@ void SystemOptions::validate() const {
   front_end.validate();
   tracker.validate();
   mapping.validate();
+  if (frame_queue < 1) throw OptionError("frame_queue", "must be >= 1");
+  if (mapping_queue < 1) throw OptionError("mapping_queue", "must be >= 1");
 }
 
 namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
@@ -52,19 +67,147 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
   if (usesImu(options_.mode) && !imu) {
     throw OptionError("--mode", "stereo-inertial needs IMU calibration and samples");
   }
+  if (!options_.deterministic) {
+    mapping_ = std::make_unique<MappingWorker>(static_cast<std::size_t>(options_.mapping_queue));
+    tracker_.setMappingSink(mapping_.get());
+  }
+}
+
+System::~System() {
+  mapping_.reset();  // joins the mapping thread before the tracker its jobs use goes
 }
 
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
-  const tracking::TrackingResult result = tracker_.track(front_end_.build(bundle));
-  trajectory_.push_back({bundle.t_ns, result.T_w_b});
+  const auto start = Clock::now();
+  const double cpu_start = threadCpuMs();
+  const tracking::Frame frame = front_end_.build(bundle);
+  timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
+  const tracking::TrackingResult result = track(frame);
+  timings_.wall_s += secondsSince(start);
+  return result;
+}
+
+tracking::TrackingResult System::track(const tracking::Frame& frame) {
+  const double cpu_start = threadCpuMs();
+  const tracking::TrackingResult result = tracker_.track(frame);
+  timings_.busy.tracking_ms += threadCpuMs() - cpu_start;
+  trajectory_.push_back({frame.t_ns, result.T_w_b});
   ++timings_.frames;
-  if (result.keyframe) ++timings_.keyframes;
+  if (result.keyframe) {
+    ++timings_.keyframes;
+    keyframes_.push_back({{frame.t_ns, result.T_w_b}, tracker_.resets()});
+  }
   timings_.total.extract_ms += result.times.extract_ms;
   timings_.total.stereo_ms += result.times.stereo_ms;
   timings_.total.track_ms += result.times.track_ms;
   timings_.total.local_ba_ms += result.times.local_ba_ms;
   if (result.state == tracking::TrackingState::kLost) ++lost_frames_;
   return result;
+}
+
+void System::run(io::DatasetSource& source, const FrameCallback& on_frame) {
+  if (options_.deterministic) {
+    runSequentially(source, on_frame);
+  } else {
+    runConcurrently(source, on_frame);
+  }
+  finish();
+}
+
+void System::runSequentially(io::DatasetSource& source, const FrameCallback& on_frame) {
+  while (true) {
+    const auto start = Clock::now();
+    const double cpu_start = threadCpuMs();
+    const std::optional<io::FrameBundle> bundle = source.next();
+    timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
+    timings_.wall_s += secondsSince(start);
+    if (!bundle) break;
+    const tracking::TrackingResult result = process(*bundle);
+    if (on_frame) on_frame(result);
+  }
+}
+
+void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_frame) {
+  const auto start = Clock::now();
+  BoundedQueue<tracking::Frame> frames(static_cast<std::size_t>(options_.frame_queue));
+  std::exception_ptr front_end_error;
+  double front_end_ms = 0.0;
+  std::thread front_end([&] {
+    const double cpu_start = threadCpuMs();
+    try {
+      while (true) {
+        const std::optional<io::FrameBundle> bundle = source.next();
+        if (!bundle) break;
+        if (!frames.push(front_end_.build(*bundle))) break;  // tracking stopped early
+      }
+    } catch (...) {
+      front_end_error = std::current_exception();
+    }
+    front_end_ms = threadCpuMs() - cpu_start;
+    frames.close();
+  });
+  // Whatever ends the tracking loop (the end of the frames or an error), stop the front end.
+  const auto stop_front_end = [&] {
+    frames.close();
+    front_end.join();
+    timings_.busy.front_end_ms += front_end_ms;
+    timings_.wall_s += secondsSince(start);
+  };
+  try {
+    while (std::optional<tracking::Frame> frame = frames.pop()) {
+      const tracking::TrackingResult result = track(*frame);
+      if (on_frame) on_frame(result);
+    }
+  } catch (...) {
+    stop_front_end();
+    throw;
+  }
+  stop_front_end();
+  if (front_end_error) std::rethrow_exception(front_end_error);
+}
+
+void System::finish() {
+  if (!mapping_) return;
+  const auto start = Clock::now();
+  const auto account = [&] {
+    timings_.wall_s += secondsSince(start);
+    timings_.total.local_ba_ms += mapping_->busyMs() - mapping_wall_ms_;
+    mapping_wall_ms_ = mapping_->busyMs();
+    timings_.busy.mapping_ms = mapping_->cpuMs();
+  };
+  try {
+    mapping_->finish();
+  } catch (...) {
+    account();
+    throw;
+  }
+  account();
+}
+
+Trajectory System::keyFrameTrajectory() const {
+  Trajectory trajectory;
+  const int current = tracker_.resets();
+  for (const InsertedKeyFrame& k : keyframes_)
+    if (k.generation < current) trajectory.push_back(k.pose);
+  if (tracker_.hasMap()) {
+    const map::Map& map = tracker_.map();
+    for (const map::KeyFrameId id : map.keyFrameIds()) {
+      map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+        trajectory.push_back({kf.t_ns, kf.T_w_b});
+      });
+    }
+  }
+  std::stable_sort(trajectory.begin(), trajectory.end(),
+                   [](const StampedPose& a, const StampedPose& b) { return a.t_ns < b.t_ns; });
+  return trajectory;
+}
+
+std::size_t System::numKeyFrames() const {
+  return tracker_.hasMap() ? tracker_.map().numKeyFrames() : 0;
+}
+
+std::size_t System::numMapPoints() const {
+  return tracker_.hasMap() ? tracker_.map().numMapPoints() : 0;
 }
 
 }  // namespace superdyna::system

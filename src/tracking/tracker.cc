@@ -201,10 +201,22 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
                                 TrackingResult& result) {
   const auto start = Clock::now();
   const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked);
-  mapper_.processKeyFrame(*map_, id);
   result.keyframe = true;
-  result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
+  if (mapping_sink_) {
+    mapping_sink_->submit([this, map = map_.get(), id] { mapper_.processKeyFrame(*map, id); });
+  } else {
+    mapper_.processKeyFrame(*map_, id);
+    result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
+  }
   result.times.local_ba_ms = millisecondsSince(start);
+}
+
+void Tracker::runMapping(std::function<void()> job) {
+  if (mapping_sink_) {
+    mapping_sink_->submit(std::move(job));
+  } else {
+    job();
+  }
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(
@@ -247,12 +259,13 @@ void Tracker::updateMotion(const SE3d& T_w_b, TimeNs t_ns) {
 
 void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   if (map_) ++resets_;
+  if (map_ && mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
   map::MapOptions map_options;
   map_options.T_b_c = {T_b_c0_};
   map_options.scale_factor = pyramid_.scale_factor;
   map_options.num_levels = pyramid_.levels;
   map_ = std::make_unique<map::Map>(map_options);
-  mapper_.reset();
+  runMapping([this] { mapper_.reset(); });
   point_keypoint_.clear();
   insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   has_map_ = true;
@@ -364,7 +377,9 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
   kf.map_points = tracked;
   const map::KeyFrameId id = map_->addKeyFrame(std::move(kf));
   const std::vector<map::MapPointId> created = createStereoPoints(frame, T_w_b, id, tracked);
-  mapper_.addKeyFrame(id, frame.right_normalized, created);
+  runMapping([this, id, right = frame.right_normalized, created]() mutable {
+    mapper_.addKeyFrame(id, std::move(right), created);
+  });
   reference_ = id;
   t_reference_ns_ = frame.t_ns;
   return id;

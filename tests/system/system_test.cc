@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
+#include <optional>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
@@ -36,6 +40,31 @@ RunSummary runSlam(const fs::path& path, SensorMode mode) {
     slam.process(*frame);
   return {slam.trajectory(), source->groundTruth(), slam.lostFrames(), slam.resets()};
 }
+
+/// A dataset source that serves the frames of another one and fails at frame `fail_at`.
+class FailingSource final : public io::DatasetSource {
+ public:
+  FailingSource(std::unique_ptr<io::DatasetSource> source, std::size_t fail_at)
+      : source_(std::move(source)), fail_at_(fail_at) {}
+  std::optional<io::FrameBundle> next() override {
+    if (served_ == fail_at_) throw InputError(InputLocation{"frame.png"}, "unreadable image");
+    ++served_;
+    return source_->next();
+  }
+  std::size_t size() const override { return source_->size(); }
+  const io::CameraCalibration& camera0() const override { return source_->camera0(); }
+  const std::optional<io::CameraCalibration>& camera1() const override {
+    return source_->camera1();
+  }
+  const std::optional<io::ImuCalibration>& imu() const override { return source_->imu(); }
+  Trajectory groundTruth() const override { return source_->groundTruth(); }
+  const std::vector<std::string>& warnings() const override { return source_->warnings(); }
+
+ private:
+  std::unique_ptr<io::DatasetSource> source_;
+  std::size_t fail_at_;
+  std::size_t served_ = 0;
+};
 
 eval::EvaluationResult ateOf(const RunSummary& run) {
   eval::EvaluationOptions options;
@@ -149,6 +178,113 @@ TEST(StereoSlam, RecoversFromLostTrackingWithANewMap) {
   EXPECT_LE(lost, 4u);
   EXPECT_EQ(slam.resets(), 1);
   EXPECT_GT(slam.numMapPoints(), 100u);
+}
+
+std::unique_ptr<io::DatasetSource> openSynthetic(std::size_t max_frames = 0) {
+  io::DatasetSourceOptions source_options;
+  source_options.max_frames = max_frames;
+  return io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
+}
+
+SystemOptions concurrentOptions() {
+  SystemOptions options;
+  options.mode = SensorMode::kStereoInertial;
+  options.deterministic = false;
+  return options;
+}
+
+/// Each keyframe time is a frame time, in order, and the keyframes are those tracking reported.
+void expectKeyFramesMatchFrames(const System& slam) {
+  const Trajectory keyframes = slam.keyFrameTrajectory();
+  EXPECT_EQ(keyframes.size(), slam.timings().keyframes);
+  std::size_t frame = 0;
+  for (const StampedPose& kf : keyframes) {
+    while (frame < slam.trajectory().size() && slam.trajectory()[frame].t_ns < kf.t_ns)
+      ++frame;
+    ASSERT_LT(frame, slam.trajectory().size());
+    EXPECT_EQ(slam.trajectory()[frame].t_ns, kf.t_ns);
+    EXPECT_TRUE(kf.T_w_x.t.allFinite());
+  }
+}
+
+TEST(StereoSlam, RunMatchesFrameByFrameProcessing) {
+  const auto source_a = openSynthetic(40);
+  SystemOptions options;
+  options.mode = SensorMode::kStereoInertial;
+  System a(options, source_a->camera0(), *source_a->camera1(), source_a->imu());
+  std::size_t callbacks = 0;
+  a.run(*source_a, [&](const tracking::TrackingResult&) { ++callbacks; });
+  const auto source_b = openSynthetic(40);
+  System b(options, source_b->camera0(), *source_b->camera1(), source_b->imu());
+  while (const auto frame = source_b->next())
+    b.process(*frame);
+  EXPECT_EQ(callbacks, 40u);
+  ASSERT_EQ(a.trajectory().size(), b.trajectory().size());
+  for (std::size_t i = 0; i < a.trajectory().size(); ++i) {
+    ASSERT_EQ(a.trajectory()[i].T_w_x.t, b.trajectory()[i].T_w_x.t) << "frame " << i;
+  }
+  expectKeyFramesMatchFrames(a);
+  EXPECT_GT(a.timings().wall_s, 0.0);
+  EXPECT_GT(a.timings().busy.front_end_ms, 0.0);
+  EXPECT_EQ(a.timings().busy.mapping_ms, 0.0);  // no mapping thread
+}
+
+TEST(ConcurrentSlam, TracksSyntheticStreetWithinBound) {
+  const auto source = openSynthetic();
+  System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
+  slam.run(*source);
+  EXPECT_EQ(slam.trajectory().size(), source->size());
+  EXPECT_EQ(slam.lostFrames(), 0u);
+  EXPECT_EQ(slam.resets(), 0);
+  expectKeyFramesMatchFrames(slam);
+  EXPECT_GT(slam.timings().busy.mapping_ms, 0.0);  // local BA ran in the mapping thread
+  EXPECT_GT(slam.timings().busy.front_end_ms, 0.0);
+  const eval::EvaluationResult ate =
+      ateOf({slam.trajectory(), source->groundTruth(), slam.lostFrames(), slam.resets()});
+  const double path = pathLength(source->groundTruth());
+  std::cout << "synthetic street concurrent: ATE rmse " << ate.ate_trans.rmse << " m ("
+            << 100.0 * ate.ate_trans.rmse / path << " %)\n";
+  EXPECT_LT(ate.ate_trans.rmse, kSyntheticAteBoundFraction * path);
+}
+
+TEST(ConcurrentSlam, RecoversFromLostTrackingWithANewMap) {
+  const auto source = openSynthetic(60);
+  System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
+  std::size_t lost = 0;
+  while (auto frame = source->next()) {
+    if (frame->index >= 20 && frame->index < 23) {  // three black frames
+      frame->image0.setTo(0);
+      frame->image1.setTo(0);
+    }
+    if (slam.process(*frame).state == tracking::TrackingState::kLost) ++lost;
+  }
+  slam.finish();
+  EXPECT_EQ(slam.trajectory().size(), 60u);
+  EXPECT_GE(lost, 1u);
+  EXPECT_LE(lost, 4u);
+  EXPECT_EQ(slam.resets(), 1);
+  EXPECT_GT(slam.numMapPoints(), 100u);
+  expectKeyFramesMatchFrames(slam);  // keyframes of the dropped map are kept too
+}
+
+TEST(ConcurrentSlam, AFrontEndErrorEndsTheRun) {
+  FailingSource source(openSynthetic(), 15);
+  System slam(concurrentOptions(), source.camera0(), *source.camera1(), source.imu());
+  test::expectError([&] { slam.run(source); }, {"frame.png", "unreadable image"});
+  EXPECT_EQ(slam.trajectory().size(), 15u);  // every frame read before the error was tracked
+}
+
+TEST(ConcurrentSlam, ATrackingThreadErrorStopsTheFrontEnd) {
+  const auto source = openSynthetic();
+  System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
+  test::expectError<std::runtime_error>(
+      [&] {
+        slam.run(*source, [&](const tracking::TrackingResult&) {
+          if (slam.trajectory().size() == 10) throw std::runtime_error("stop at frame 10");
+        });
+      },
+      {"stop at frame 10"});
+  EXPECT_EQ(slam.trajectory().size(), 10u);
 }
 
 TEST(StereoSlam, TracksEurocExcerpt) {

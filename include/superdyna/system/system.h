@@ -1,16 +1,29 @@
 #pragma once
-// The SLAM system facade: feeds FrameBundles through tracking and local mapping (sequentially, so
-// the same input gives a bit-identical trajectory) and records the body trajectory of every frame
-// and per-stage timings.
+// The SLAM system facade: feeds FrameBundles through the front end (features, stereo), tracking and
+// local mapping and records the body trajectory of every frame, the keyframe trajectory and
+// per-stage timings.
+//
+// Two pipelines:
+// - deterministic: all stages run one after the other in the caller's thread, so the same input
+//   gives a bit-identical trajectory;
+// - concurrent (ORB-SLAM style): local mapping runs in its own thread (MappingWorker) fed by a
+//   bounded job queue, so tracking does not wait for local BA; in run() the front end also runs in
+//   its own thread, up to `frame_queue` frames ahead of tracking. Tracking stays in the caller's
+//   thread. Results vary slightly from run to run (local BA ends at different frames).
+// The map is mutex-protected; the LocalMapper is only used by the mapping thread (MappingSink).
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/mapping/local_mapper.h"
+#include "superdyna/system/mapping_worker.h"
 #include "superdyna/tracking/front_end.h"
 #include "superdyna/tracking/tracker.h"
 
@@ -28,7 +41,9 @@ struct SystemOptions {
   tracking::FrontEndOptions front_end;
   tracking::TrackerOptions tracker;
   mapping::LocalMapperOptions mapping;
-  bool deterministic = true;  ///< Sequential, single-threaded solvers (the only mode so far).
+  bool deterministic = true;  ///< Sequential pipeline; false = concurrent (see above).
+  int frame_queue = 2;        ///< Concurrent: frames the front end may build ahead, >= 1.
+  int mapping_queue = 16;     ///< Concurrent: mapping jobs (2 per keyframe) that may wait, >= 1.
   void validate() const;
 };
 
@@ -36,13 +51,28 @@ struct SystemOptions {
 /// `mapping`) over `defaults`; an unknown section or key is an InputError naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
+/// CPU time each thread of the pipeline used [ms] (CPU, not wall-clock, time: meaningful on a
+/// loaded machine too). In the deterministic pipeline everything runs in the caller's thread.
+struct ThreadBusyTimes {
+  double front_end_ms = 0.0;  ///< Reading the dataset (in run()), extraction, stereo.
+  double tracking_ms = 0.0;   ///< Tracking and keyframe insertion (plus local BA if sequential).
+  double mapping_ms = 0.0;    ///< The mapping thread (concurrent only).
+};
+
 /// Sums of the per-stage times over the processed frames [ms].
 struct TimingSummary {
   std::size_t frames = 0;
   std::size_t keyframes = 0;
+  /// Per stage. local_ba_ms: keyframe insertion and local mapping, wherever they ran.
   tracking::StageTimes total;
+  ThreadBusyTimes busy;
+  double wall_s = 0.0;  ///< Wall-clock time of process() / run() calls, to the end of mapping.
   double meanMs(double total_ms) const { return frames > 0 ? total_ms / frames : 0.0; }
+  double framesPerSecond() const { return wall_s > 0.0 ? frames / wall_s : 0.0; }
 };
+
+/// Called in the tracking thread after each frame.
+using FrameCallback = std::function<void(const tracking::TrackingResult&)>;
 
 class System {
  public:
@@ -50,21 +80,56 @@ class System {
          const std::optional<io::CameraCalibration>& cam1,
          const std::optional<io::ImuCalibration>& imu);
 
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
+  /// Stops the mapping thread (dropping its queued jobs) without rethrowing its errors.
+  ~System();
+
+  /// Front end and tracking of one frame in the caller's thread. Concurrent pipeline: local mapping
+  /// of a new keyframe is queued for the mapping thread (call finish() after the last frame).
   tracking::TrackingResult process(const io::FrameBundle& bundle);
 
+  /// Processes every remaining frame of `source`, calling on_frame after each one, then finish().
+  /// Concurrent pipeline: the front end reads and prepares frames in its own thread. An error in
+  /// any thread stops all of them and is rethrown here.
+  void run(io::DatasetSource& source, const FrameCallback& on_frame = {});
+
+  /// Waits for local mapping to process every queued keyframe and stops the mapping thread;
+  /// rethrows its error, if any. Idempotent; processing may continue afterwards.
+  void finish();
+
+  const SystemOptions& options() const { return options_; }
   const Trajectory& trajectory() const { return trajectory_; }
+  /// Keyframes in time order: those of the current map with their latest (local-BA refined)
+  /// poses, those of maps dropped at resets with their poses at insertion. Call after finish() for
+  /// the final poses.
+  Trajectory keyFrameTrajectory() const;
   const TimingSummary& timings() const { return timings_; }
   std::size_t lostFrames() const { return lost_frames_; }
   int resets() const { return tracker_.resets(); }
-  std::size_t numKeyFrames() const { return tracker_.map().numKeyFrames(); }
-  std::size_t numMapPoints() const { return tracker_.map().numMapPoints(); }
+  std::size_t numKeyFrames() const;
+  std::size_t numMapPoints() const;
 
  private:
+  tracking::TrackingResult track(const tracking::Frame& frame);
+  void runSequentially(io::DatasetSource& source, const FrameCallback& on_frame);
+  void runConcurrently(io::DatasetSource& source, const FrameCallback& on_frame);
+
+  /// A keyframe as inserted, with the map generation (resets() at insertion) it belongs to.
+  struct InsertedKeyFrame {
+    StampedPose pose;
+    int generation = 0;
+  };
+
   SystemOptions options_;
   tracking::FrontEnd front_end_;
   tracking::Tracker tracker_;
+  /// Declared after tracker_ (destroyed first): its jobs use the tracker.
+  std::unique_ptr<MappingWorker> mapping_;
   Trajectory trajectory_;
+  std::vector<InsertedKeyFrame> keyframes_;
   TimingSummary timings_;
+  double mapping_wall_ms_ = 0.0;  ///< Mapping thread's job time already in timings_.
   std::size_t lost_frames_ = 0;
 };
 

@@ -8,6 +8,7 @@
 // than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <unordered_map>
@@ -71,6 +72,21 @@ struct PyramidInfo {
   int levels = 8;
 };
 
+/// Where the tracker sends the local-mapping work of its keyframes (registering a keyframe with the
+/// LocalMapper, local BA, resets). Without a sink the tracker runs each job at once, inside
+/// track(): the sequential, deterministic pipeline. A sink may run the jobs later in another thread
+/// (the concurrent System); it must run them one at a time, in submission order, all in the same
+/// thread.
+class MappingSink {
+ public:
+  virtual ~MappingSink() = default;
+  /// Queues one job; the job touches the tracker's LocalMapper and map.
+  virtual void submit(std::function<void()> job) = 0;
+  /// Discards the queued jobs and returns once no job runs any more: the tracker is about to drop
+  /// the map (and reset the LocalMapper) that they work on.
+  virtual void discardPending() = 0;
+};
+
 class Tracker {
  public:
   /// cam1 absent = monocular rig.
@@ -82,8 +98,15 @@ class Tracker {
   /// Tracks one frame built by the FrontEnd (frames in time order).
   TrackingResult track(const Frame& frame);
 
+  /// The current map; only valid once hasMap() (a first frame with enough stereo points).
   const map::Map& map() const { return *map_; }
+  bool hasMap() const { return map_ != nullptr; }
   int resets() const { return resets_; }
+
+  /// Hands the local-mapping jobs to `sink` (not owned, must outlive its use; nullptr = run them at
+  /// once). With a sink, track() does not wait for local BA, so the pose of a new keyframe's frame
+  /// is the tracked one, not the one local BA refines.
+  void setMappingSink(MappingSink* sink) { mapping_sink_ = sink; }
 
  private:
   struct LocalPoint {
@@ -120,6 +143,7 @@ class Tracker {
                                                   map::KeyFrameId keyframe,
                                                   const std::vector<map::MapPointId>& tracked);
   void updateMotion(const SE3d& T_w_b, TimeNs t_ns);
+  void runMapping(std::function<void()> job);
 
   TrackerOptions options_;
   PyramidInfo pyramid_;
@@ -131,7 +155,8 @@ class Tracker {
   imu::Bias bias_;
   double baseline_m_ = 0.0;
   std::unique_ptr<map::Map> map_;
-  mapping::LocalMapper mapper_;
+  mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).
+  MappingSink* mapping_sink_ = nullptr;
   std::unordered_map<map::MapPointId, features::Keypoint> point_keypoint_;  ///< For the query.
 
   bool has_map_ = false;

@@ -1,0 +1,129 @@
+#include "superdyna/system/mapping_worker.h"
+
+#include <time.h>
+
+#include <chrono>
+#include <stdexcept>
+#include <utility>
+
+namespace superdyna::system {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+double threadCpuMs() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return 1e3 * static_cast<double>(now.tv_sec) + 1e-6 * static_cast<double>(now.tv_nsec);
+}
+
+MappingWorker::MappingWorker(std::size_t capacity) : capacity_(capacity) {
+  if (capacity_ == 0) throw std::invalid_argument("MappingWorker: capacity must be >= 1");
+}
+
+MappingWorker::~MappingWorker() {
+  if (!thread_.joinable()) return;
+  queue_->clear();
+  queue_->close();
+  thread_.join();
+}
+
+void MappingWorker::start() {
+  queue_ = std::make_unique<BoundedQueue<std::function<void()>>>(capacity_);
+  thread_ = std::thread([this, queue = queue_.get()] { loop(*queue); });
+}
+
+void MappingWorker::submit(std::function<void()> job) {
+  rethrowError();
+  if (!thread_.joinable()) start();
+  {
+    const std::lock_guard lock(mutex_);
+    ++unfinished_;
+  }
+  if (queue_->push(std::move(job))) return;
+  {
+    const std::lock_guard lock(mutex_);
+    --unfinished_;
+  }
+  rethrowError();  // the queue only closes early after an error
+  throw std::logic_error("MappingWorker: submit to a stopped worker");
+}
+
+void MappingWorker::discardPending() {
+  if (thread_.joinable()) {
+    const std::size_t dropped = queue_->clear();
+    std::unique_lock lock(mutex_);
+    unfinished_ -= dropped;
+    idle_.wait(lock, [&] { return unfinished_ == 0; });
+  }
+  rethrowError();
+}
+
+void MappingWorker::finish() {
+  if (thread_.joinable()) {
+    queue_->close();
+    thread_.join();
+    queue_.reset();
+  }
+  rethrowError();
+}
+
+void MappingWorker::loop(BoundedQueue<std::function<void()>>& queue) {
+  double cpu_start = threadCpuMs();
+  while (std::optional<std::function<void()>> job = queue.pop()) {
+    const auto start = Clock::now();
+    std::exception_ptr error;
+    try {
+      (*job)();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    const std::lock_guard lock(mutex_);
+    busy_ms_ += millisecondsSince(start);
+    const double cpu_now = threadCpuMs();
+    cpu_ms_ += cpu_now - cpu_start;
+    cpu_start = cpu_now;
+    ++jobs_run_;
+    --unfinished_;
+    if (error) {
+      error_ = error;
+      queue.close();  // refuse further jobs; the queued ones are dropped
+      unfinished_ -= queue.clear();
+    }
+    idle_.notify_all();
+    if (error) return;
+  }
+}
+
+void MappingWorker::rethrowError() const {
+  std::exception_ptr error;
+  {
+    const std::lock_guard lock(mutex_);
+    error = error_;
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+double MappingWorker::busyMs() const {
+  const std::lock_guard lock(mutex_);
+  return busy_ms_;
+}
+
+double MappingWorker::cpuMs() const {
+  const std::lock_guard lock(mutex_);
+  return cpu_ms_;
+}
+
+std::size_t MappingWorker::jobsRun() const {
+  const std::lock_guard lock(mutex_);
+  return jobs_run_;
+}
+
+}  // namespace superdyna::system
