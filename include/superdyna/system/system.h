@@ -1,7 +1,9 @@
 #pragma once
 // The SLAM system facade: feeds FrameBundles through tracking and local mapping (sequentially, so
 // the same input gives a bit-identical trajectory) and records the body trajectory of every frame
-// and per-stage timings.
+// and per-stage timings. Monocular frames without a pose (map initialisation) are not recorded;
+// when the tracker rescales / rotates the current map (mono-inertial), the poses recorded on it
+// follow.
 
 #include <cstddef>
 #include <filesystem>
@@ -16,12 +18,14 @@
 
 namespace superdyna::system {
 
-enum class SensorMode { kStereo, kStereoInertial };
+enum class SensorMode { kStereo, kStereoInertial, kMono, kMonoInertial };
 
-/// "stereo" | "stereo-inertial"; "mono" / "mono-inertial" throw OptionError (not implemented yet).
+/// "stereo" | "stereo-inertial" | "mono" | "mono-inertial"; others throw OptionError.
 SensorMode parseSensorMode(const std::string& name);
 std::string toString(SensorMode mode);
 bool usesImu(SensorMode mode);
+/// Mono modes use cam0 only (a given cam1 is ignored).
+bool isMonocular(SensorMode mode);
 
 struct SystemOptions {
   SensorMode mode = SensorMode::kStereo;
@@ -33,7 +37,8 @@ struct SystemOptions {
 };
 
 /// Reads a YAML options file (sections `orb`, `stereo`, `projection`, `pose`, `tracker`,
-/// `mapping`) over `defaults`; an unknown section or key is an InputError naming file and key.
+/// `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError naming file
+/// and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// Sums of the per-stage times over the processed frames [ms].
@@ -55,6 +60,8 @@ class System {
   const Trajectory& trajectory() const { return trajectory_; }
   const TimingSummary& timings() const { return timings_; }
   std::size_t lostFrames() const { return lost_frames_; }
+  /// Monocular: frames spent initialising a map (no pose estimate; not in the trajectory).
+  std::size_t initializingFrames() const { return initializing_frames_; }
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const { return tracker_.map().numKeyFrames(); }
   std::size_t numMapPoints() const { return tracker_.map().numMapPoints(); }
@@ -66,6 +73,8 @@ class System {
   Trajectory trajectory_;
   TimingSummary timings_;
   std::size_t lost_frames_ = 0;
+  std::size_t initializing_frames_ = 0;
+  std::size_t map_start_ = 0;  ///< First trajectory entry estimated on the current map.
 };
 
 }  // namespace superdyna::system
