@@ -79,18 +79,19 @@ fs::path defaultKeyFramesPath(const fs::path& output) {
   return path;
 }
 
-void printAccuracy(const Trajectory& gt, const Trajectory& estimate) {
+void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::AlignmentMode align) {
   if (gt.empty()) return;
   eval::EvaluationOptions options;
-  options.align = eval::AlignmentMode::kSE3;
+  options.align = align;
   options.rpe.unit = eval::DeltaUnit::kFrames;  // short excerpts may not span 1 m
   options.rpe.delta = 1.0;
   try {
     const eval::EvaluationResult r = eval::evaluate(gt, estimate, options);
     fmt::print(
-        "ATE (SE(3) aligned): rmse {:.4f} m, mean {:.4f} m, max {:.4f} m over {} poses; "
+        "ATE ({} aligned): rmse {:.4f} m, mean {:.4f} m, max {:.4f} m over {} poses; "
         "ground-truth path {:.2f} m\n",
-        r.ate_trans.rmse, r.ate_trans.mean, r.ate_trans.max, r.pairs, pathLength(gt));
+        align == eval::AlignmentMode::kSim3 ? "Sim(3)" : "SE(3)", r.ate_trans.rmse,
+        r.ate_trans.mean, r.ate_trans.max, r.pairs, pathLength(gt));
   } catch (const std::exception& e) {
     fmt::print("ATE not available: {}\n", e.what());
   }
@@ -107,7 +108,7 @@ class RunCommand : public Command {
         ->required()
         ->check(CLI::ExistingDirectory);
     sub_->add_option("--mode", mode_,
-                     "Sensor mode: stereo | stereo-inertial (mono, mono-inertial: not yet)")
+                     "Sensor mode: stereo | stereo-inertial | mono | mono-inertial")
         ->capture_default_str();
     sub_->add_option("--output", output_, "Trajectory file to write")->required();
     sub_->add_option("--format", format_, "Trajectory format")
@@ -160,12 +161,16 @@ class RunCommand : public Command {
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
     io::DatasetSourceOptions source_options;
-    source_options.stereo = true;
+    source_options.stereo = !system::isMonocular(options.mode);
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
-    if (!source->camera1()) throw OptionError("--mode", "stereo modes need a second camera");
-    system::System slam(options, source->camera0(), *source->camera1(), source->imu());
+    if (!source_options.stereo || !source->camera1()) {
+      if (!system::isMonocular(options.mode)) {
+        throw OptionError("--mode", "stereo modes need a second camera");
+      }
+    }
+    system::System slam(options, source->camera0(), source->camera1(), source->imu());
 
     fmt::print("running {} SLAM ({}) on {} ({} frames)\n", system::toString(options.mode),
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
@@ -183,8 +188,16 @@ class RunCommand : public Command {
         "({} keyframes)\n",
         t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
         keyframes_path.string(), keyframes.size());
+    if (system::isMonocular(options.mode)) {
+      fmt::print("monocular: {} frames spent initialising maps (not in the trajectory)\n",
+                 slam.initializingFrames());
+    }
     printTimings(slam.options(), t);
-    printAccuracy(source->groundTruth(), slam.trajectory());
+    printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
+    // Visual-only monocular trajectories have no metric scale.
+    if (options.mode == system::SensorMode::kMono) {
+      printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSim3);
+    }
     return 0;
   }
 

@@ -23,6 +23,7 @@ void LocalMapperOptions::validate() const {
   }
   if (!(sigma0_px > 0.0)) throw OptionError("mapping.sigma0_px", "must be > 0");
   if (!(scale_factor > 1.0)) throw OptionError("mapping.scale_factor", "must be > 1");
+  triangulation.validate();
 }
 
 namespace {
@@ -55,6 +56,12 @@ LocalMapper::LocalMapper(const LocalMapperOptions& options,
     : options_(options), cameras_(std::move(cameras)) {
   options_.validate();
   if (cameras_.empty()) throw OptionError("cameras", "the local mapper needs the left camera");
+  if (options_.triangulate) {
+    PointTriangulatorOptions triangulation = options_.triangulation;
+    triangulation.sigma0_px = options_.sigma0_px;
+    triangulation.scale_factor = options_.scale_factor;
+    triangulator_.emplace(triangulation, cameras_.front());
+  }
 }
 
 void LocalMapper::addKeyFrame(map::KeyFrameId id, RightObservations right,
@@ -70,6 +77,10 @@ void LocalMapper::reset() {
 }
 
 int LocalMapper::processKeyFrame(map::Map& map, map::KeyFrameId newest) {
+  if (triangulator_) {
+    for (const map::MapPointId point : triangulator_->createPoints(map, newest))
+      recent_points_.emplace_back(point, newest);
+  }
   const std::vector<map::KeyFrameId> window = localWindow(map, newest);
   const int used = window.size() >= 2 ? bundleAdjust(map, window) : 0;
   cullRecentPoints(map, newest);

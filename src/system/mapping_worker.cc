@@ -66,6 +66,14 @@ void MappingWorker::discardPending() {
   rethrowError();
 }
 
+void MappingWorker::waitIdle() {
+  if (thread_.joinable()) {
+    std::unique_lock lock(mutex_);
+    idle_.wait(lock, [&] { return unfinished_ == 0 || error_ != nullptr; });
+  }
+  rethrowError();
+}
+
 void MappingWorker::finish() {
   if (thread_.joinable()) {
     queue_->close();

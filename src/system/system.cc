@@ -8,27 +8,40 @@
 
 #include "superdyna/core/bounded_queue.h"
 #include "superdyna/core/error.h"
+#include "superdyna/mapping/map_inertial_alignment.h"
 
 namespace superdyna::system {
 
 SensorMode parseSensorMode(const std::string& name) {
   if (name == "stereo") return SensorMode::kStereo;
   if (name == "stereo-inertial") return SensorMode::kStereoInertial;
-  if (name == "mono" || name == "mono-inertial") {
-    throw OptionError("--mode", "'" + name +
-                                    "' is not implemented yet; supported modes: stereo, "
-                                    "stereo-inertial");
-  }
-  throw OptionError("--mode",
-                    "unknown mode '" + name + "'; supported modes: stereo, stereo-inertial");
+  if (name == "mono") return SensorMode::kMono;
+  if (name == "mono-inertial") return SensorMode::kMonoInertial;
+  throw OptionError("--mode", "unknown mode '" + name +
+                                  "'; supported modes: stereo, stereo-inertial, mono, "
+                                  "mono-inertial");
 }
 
 std::string toString(SensorMode mode) {
-  return mode == SensorMode::kStereo ? "stereo" : "stereo-inertial";
+  switch (mode) {
+    case SensorMode::kStereo:
+      return "stereo";
+    case SensorMode::kStereoInertial:
+      return "stereo-inertial";
+    case SensorMode::kMono:
+      return "mono";
+    case SensorMode::kMonoInertial:
+      return "mono-inertial";
+  }
+  return "?";
 }
 
 bool usesImu(SensorMode mode) {
-  return mode == SensorMode::kStereoInertial;
+  return mode == SensorMode::kStereoInertial || mode == SensorMode::kMonoInertial;
+}
+
+bool isMonocular(SensorMode mode) {
+  return mode == SensorMode::kMono || mode == SensorMode::kMonoInertial;
 }
 
 void SystemOptions::validate() const {
@@ -49,6 +62,8 @@ double secondsSince(Clock::time_point start) {
 
 SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
+  // Triangulation between keyframes is the only source of new points of a monocular map.
+  if (isMonocular(options.mode)) options.mapping.triangulate = true;
   options.validate();
   return options;
 }
@@ -59,13 +74,17 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
                const std::optional<io::CameraCalibration>& cam1,
                const std::optional<io::ImuCalibration>& imu)
     : options_(checkedOptions(options)),
-      front_end_(options_.front_end, cam0, cam1),
+      front_end_(options_.front_end, cam0, isMonocular(options_.mode) ? std::nullopt : cam1),
       tracker_(
           options_.tracker,
           tracking::PyramidInfo{options_.front_end.orb.scale_factor, options_.front_end.orb.levels},
-          options_.mapping, cam0, cam1, usesImu(options_.mode) ? imu : std::nullopt) {
+          options_.mapping, cam0, isMonocular(options_.mode) ? std::nullopt : cam1,
+          usesImu(options_.mode) ? imu : std::nullopt) {
   if (usesImu(options_.mode) && !imu) {
-    throw OptionError("--mode", "stereo-inertial needs IMU calibration and samples");
+    throw OptionError("--mode", toString(options_.mode) + " needs IMU calibration and samples");
+  }
+  if (!isMonocular(options_.mode) && !cam1) {
+    throw OptionError("--mode", toString(options_.mode) + " needs a second camera");
   }
   if (!options_.deterministic) {
     mapping_ = std::make_unique<MappingWorker>(static_cast<std::size_t>(options_.mapping_queue));
@@ -75,6 +94,21 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
 
 System::~System() {
   mapping_.reset();  // joins the mapping thread before the tracker its jobs use goes
+}
+
+void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
+  if (result.world_change) {
+    for (std::size_t i = map_start_; i < trajectory_.size(); ++i) {
+      trajectory_[i].T_w_x =
+          mapping::transformBodyPose(*result.world_change, trajectory_[i].T_w_x, tracker_.T_b_c0());
+    }
+  }
+  if (result.state == tracking::TrackingState::kInitialized) map_start_ = trajectory_.size();
+  if (result.state == tracking::TrackingState::kInitializing) {
+    ++initializing_frames_;
+  } else {
+    trajectory_.push_back({t_ns, result.T_w_b});
+  }
 }
 
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
@@ -91,7 +125,7 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
   const double cpu_start = threadCpuMs();
   const tracking::TrackingResult result = tracker_.track(frame);
   timings_.busy.tracking_ms += threadCpuMs() - cpu_start;
-  trajectory_.push_back({frame.t_ns, result.T_w_b});
+  record(frame.t_ns, result);
   ++timings_.frames;
   if (result.keyframe) {
     ++timings_.keyframes;

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "superdyna/core/error.h"
+#include "superdyna/mapping/map_inertial_alignment.h"
 
 namespace superdyna::tracking {
 
@@ -44,6 +45,17 @@ void TrackerOptions::validate() const {
   if (!(imu_rotation_prior_sigma_deg >= 0.0)) {
     throw OptionError("tracker.imu_rotation_prior_sigma_deg", "must be >= 0");
   }
+  mono_init.validate();
+  if (!(inertial_init_after_s > 0.0)) {
+    throw OptionError("tracker.inertial_init_after_s", "must be > 0");
+  }
+  if (!(inertial_refine_after_s > inertial_init_after_s)) {
+    throw OptionError("tracker.inertial_refine_after_s", "must be > inertial_init_after_s");
+  }
+  if (!(inertial_final_refine_after_s > inertial_refine_after_s)) {
+    throw OptionError("tracker.inertial_final_refine_after_s", "must be > inertial_refine_after_s");
+  }
+  inertial_init.validate();
 }
 
 const char* toString(TrackingState state) {
@@ -54,6 +66,8 @@ const char* toString(TrackingState state) {
       return "initialized";
     case TrackingState::kLost:
       return "lost";
+    case TrackingState::kInitializing:
+      return "initializing";
   }
   return "?";
 }
@@ -84,6 +98,13 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
       baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
       mapper_(mapping, cameras_) {
   options_.validate();
+  map_ = newMap();
+  if (isMonocular()) {
+    MonoInitializerOptions mono = options_.mono_init;
+    mono.sigma0_px = mapping.sigma0_px;
+    mono.scale_factor = pyramid_.scale_factor;
+    mono_initializer_.emplace(mono, 0.5 * (cam0.fx + cam0.fy));
+  }
 }
 
 Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
@@ -94,7 +115,7 @@ Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
       samples.back().t_ns >= frame.t_ns && frame.t_ns > t_last_ns_) {
     imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
     preintegration.integrateBetween(samples, t_last_ns_, frame.t_ns);
-    if (options_.imu_translation_prediction && has_velocity_) {
+    if (options_.imu_translation_prediction && has_velocity_ && inertialReady()) {
       return {predictWithImu(preintegration), true};
     }
     const Eigen::Matrix3d R_b_i = imu_->T_b_i.rotation();
@@ -128,6 +149,10 @@ std::optional<optim::PosePrior> Tracker::rotationPrior(const Prediction& predict
 
 SE3d Tracker::initialPose(const Frame& frame, const SE3d& predicted) const {
   if (has_last_) return predicted;  // a reset keeps the world frame of the lost map
+  return gravityAlignedPose(frame);
+}
+
+SE3d Tracker::gravityAlignedPose(const Frame& frame) const {
   if (!imu_ || frame.imu.empty()) return SE3d();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
   for (const io::ImuSample& s : frame.imu)
@@ -145,6 +170,14 @@ TrackingResult Tracker::track(const Frame& frame) {
   const auto start = Clock::now();
   const Prediction prediction = predictPose(frame);
   result.T_w_b = prediction.T_w_b;
+  recordImu(frame);
+  if (!has_map_ && isMonocular()) {
+    initializeMono(frame, result);
+    result.times.track_ms = millisecondsSince(start);
+    if (result.state == TrackingState::kInitialized) return result;  // motion set by the init
+    updateMotion(result.T_w_b, frame.t_ns);
+    return result;
+  }
   if (!has_map_) {
     initializeAt(frame, initialPose(frame, prediction.T_w_b), result);
     result.times.track_ms = millisecondsSince(start);
@@ -156,6 +189,7 @@ TrackingResult Tracker::track(const Frame& frame) {
   if (result.inliers < options_.min_inliers) {
     has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
     result.state = TrackingState::kLost;
+    if (mono_initializer_) mono_initializer_->reset();
   } else {
     result.state = TrackingState::kTracking;
     if (needKeyFrame(frame, result.inliers)) addKeyFrameAndMap(frame, tracked, result);
@@ -208,6 +242,7 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
     mapper_.processKeyFrame(*map_, id);
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
   }
+  alignInertialIfDue(result);
   result.times.local_ba_ms = millisecondsSince(start);
 }
 
@@ -217,6 +252,10 @@ void Tracker::runMapping(std::function<void()> job) {
   } else {
     job();
   }
+}
+
+void Tracker::waitForMapping() {
+  if (mapping_sink_) mapping_sink_->waitIdle();
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(
@@ -257,16 +296,20 @@ void Tracker::updateMotion(const SE3d& T_w_b, TimeNs t_ns) {
   has_last_ = true;
 }
 
-void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
-  if (map_) ++resets_;
-  if (map_ && mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
+std::unique_ptr<map::Map> Tracker::newMap() const {
   map::MapOptions map_options;
   map_options.T_b_c = {T_b_c0_};
   map_options.scale_factor = pyramid_.scale_factor;
   map_options.num_levels = pyramid_.levels;
-  map_ = std::make_unique<map::Map>(map_options);
+  return std::make_unique<map::Map>(map_options);
+}
+
+void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
+  if (mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
+  if (map_->numKeyFrames() > 0) ++resets_;
+  map_ = newMap();
   runMapping([this] { mapper_.reset(); });
-  point_keypoint_.clear();
+  inertial_stage_ = 0;
   insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   has_map_ = true;
 }
@@ -313,7 +356,7 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
     map_->increaseVisible(points[k].id);
     visible.push_back(static_cast<int>(k));
     predicted.push_back(*pixel);
-    query.keypoints.push_back(point_keypoint_.at(points[k].id));
+    query.keypoints.push_back(queryKeypoint(points[k].id));
     rows.push_back(descriptor);
   }
   if (visible.empty()) return {};
@@ -335,8 +378,28 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
   return usable;
 }
 
+features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
+  // The keypoint of the point's oldest observation describes how its descriptor was seen (octave,
+  // orientation) — for points of stereo keyframes and of the mapper's triangulation alike.
+  std::optional<std::pair<map::KeyFrameId, int>> observation;
+  map_->readMapPoint(id, [&](const map::MapPoint& p) {
+    if (!p.observations.empty()) observation = *p.observations.begin();
+  });
+  features::Keypoint keypoint;
+  if (!observation) return keypoint;
+  map_->readKeyFrame(observation->first, [&](const map::KeyFrame& kf) {
+    const map::KeyFrameKeypoint& k = kf.keypoints[static_cast<std::size_t>(observation->second)];
+    keypoint.pixel = k.pixel;
+    keypoint.angle = k.angle;
+    keypoint.octave = k.octave;
+    keypoint.class_id = k.class_id;
+    keypoint.instance_id = k.instance_id;
+  });
+  return keypoint;
+}
+
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
-  if (frame.numStereo() < options_.keyframe_min_stereo) return false;
+  if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
   if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
@@ -370,6 +433,7 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
     k.pixel = source.pixel;
     k.normalized = frame.normalized[i].allFinite() ? frame.normalized[i] : Eigen::Vector2d::Zero();
     k.octave = source.octave;
+    k.angle = source.angle;
     k.class_id = source.class_id;
     k.instance_id = source.instance_id;
     k.depth_m = frame.depth_m[i];
@@ -409,7 +473,6 @@ std::vector<map::MapPointId> Tracker::createStereoPoints(
     const map::MapPointId id = map_->addMapPoint(std::move(point));
     map_->addObservation(id, keyframe, static_cast<int>(i));
     map_->updateNormalAndDistances(id);
-    point_keypoint_[id] = frame.features.keypoints[i];
     created.push_back(id);
   }
   return created;

@@ -19,6 +19,7 @@ struct KeyFrameKeypoint {
   /// optimisation works with, so lens distortion stays out of it.
   Eigen::Vector2d normalized = Eigen::Vector2d::Zero();
   int octave = 0;       ///< Pyramid level of detection (0 = full resolution).
+  float angle = -1.0f;  ///< Orientation [deg] (features::Keypoint::angle); -1 = none.
   int camera = 0;       ///< Camera of the rig that saw it (index into MapOptions::T_b_c).
   int class_id = 0;     ///< Semantic class (features::kClass*); 0 = background.
   int instance_id = 0;  ///< Object instance; 0 = static background.

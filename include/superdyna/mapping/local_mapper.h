@@ -12,6 +12,7 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/map/map.h"
+#include "superdyna/mapping/point_triangulator.h"
 #include "superdyna/optim/reprojection_factor.h"
 
 namespace superdyna::mapping {
@@ -25,6 +26,10 @@ struct LocalMapperOptions {
   double min_found_ratio = 0.25;  ///< Matched / visible ratio a checked point needs, [0, 1].
   double sigma0_px = 1.0;         ///< Keypoint standard deviation at octave 0 [px], > 0.
   double scale_factor = 1.2;      ///< Pyramid scale between octaves, > 1.
+  /// Triangulate new points between each new keyframe and its neighbours before the BA (the only
+  /// source of new points in monocular maps). Its sigma0_px and scale_factor are the ones above.
+  bool triangulate = false;
+  PointTriangulatorOptions triangulation;
   void validate() const;
 };
 
@@ -57,6 +62,7 @@ class LocalMapper {
   std::vector<optim::ReprojectionCamera> cameras_;
   std::map<map::KeyFrameId, RightObservations> right_;
   std::vector<std::pair<map::MapPointId, map::KeyFrameId>> recent_points_;
+  std::optional<PointTriangulator> triangulator_;
 };
 
 }  // namespace superdyna::mapping

@@ -37,6 +37,7 @@ class MappingWorker final : public tracking::MappingSink {
   /// Queues the job, waiting while the queue is full.
   void submit(std::function<void()> job) override;
   void discardPending() override;
+  void waitIdle() override;
   /// Runs every queued job, then joins the thread. A later submit() starts a new thread.
   void finish();
 

@@ -11,6 +11,10 @@
 //   its own thread, up to `frame_queue` frames ahead of tracking. Tracking stays in the caller's
 //   thread. Results vary slightly from run to run (local BA ends at different frames).
 // The map is mutex-protected; the LocalMapper is only used by the mapping thread (MappingSink).
+//
+// Monocular frames without a pose (map initialisation) are not recorded; when the tracker rescales
+// / rotates the current map (mono-inertial inertial initialisation), the poses recorded on it
+// follow.
 
 #include <cstddef>
 #include <filesystem>
@@ -29,12 +33,14 @@
 
 namespace superdyna::system {
 
-enum class SensorMode { kStereo, kStereoInertial };
+enum class SensorMode { kStereo, kStereoInertial, kMono, kMonoInertial };
 
-/// "stereo" | "stereo-inertial"; "mono" / "mono-inertial" throw OptionError (not implemented yet).
+/// "stereo" | "stereo-inertial" | "mono" | "mono-inertial"; others throw OptionError.
 SensorMode parseSensorMode(const std::string& name);
 std::string toString(SensorMode mode);
 bool usesImu(SensorMode mode);
+/// Mono modes use cam0 only (a given cam1 is ignored).
+bool isMonocular(SensorMode mode);
 
 struct SystemOptions {
   SensorMode mode = SensorMode::kStereo;
@@ -48,7 +54,8 @@ struct SystemOptions {
 };
 
 /// Reads a YAML options file (sections `orb`, `stereo`, `projection`, `pose`, `tracker`,
-/// `mapping`) over `defaults`; an unknown section or key is an InputError naming file and key.
+/// `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError naming file
+/// and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// CPU time each thread of the pipeline used [ms] (CPU, not wall-clock, time: meaningful on a
@@ -106,12 +113,17 @@ class System {
   Trajectory keyFrameTrajectory() const;
   const TimingSummary& timings() const { return timings_; }
   std::size_t lostFrames() const { return lost_frames_; }
+  /// Monocular: frames spent initialising a map (no pose estimate; not in the trajectory).
+  std::size_t initializingFrames() const { return initializing_frames_; }
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
 
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);
+  /// Appends the frame to the trajectory (initialising mono frames are counted, not recorded) and
+  /// applies a change of the world of the current map to the poses recorded on it.
+  void record(TimeNs t_ns, const tracking::TrackingResult& result);
   void runSequentially(io::DatasetSource& source, const FrameCallback& on_frame);
   void runConcurrently(io::DatasetSource& source, const FrameCallback& on_frame);
 
@@ -131,6 +143,8 @@ class System {
   TimingSummary timings_;
   double mapping_wall_ms_ = 0.0;  ///< Mapping thread's job time already in timings_.
   std::size_t lost_frames_ = 0;
+  std::size_t initializing_frames_ = 0;
+  std::size_t map_start_ = 0;  ///< First trajectory entry estimated on the current map.
 };
 
 }  // namespace superdyna::system

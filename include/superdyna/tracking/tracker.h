@@ -6,6 +6,12 @@
 // local map (points of the reference keyframe and its best covisible keyframes), matching by
 // projection, motion-only BA, keyframe decision, new stereo map points and local BA. Fewer inliers
 // than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
+//
+// Monocular rigs (no cam1) start each map by two-view initialisation (mono_initializer.h) and get
+// new points only from the local mapper's triangulation. With an IMU (mono-inertial) the map is
+// scaled and gravity-aligned by inertial-only estimation once its keyframes span
+// inertial_init_after_s, and re-estimated at the two refinement times; until then the IMU only
+// predicts rotations.
 
 #include <Eigen/Core>
 #include <functional>
@@ -17,12 +23,14 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/features/matcher.h"
+#include "superdyna/imu/inertial_initialization.h"
 #include "superdyna/imu/preintegration.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/optim/pose_optimizer.h"
 #include "superdyna/tracking/frame.h"
+#include "superdyna/tracking/mono_initializer.h"
 
 namespace superdyna::tracking {
 
@@ -44,10 +52,18 @@ struct TrackerOptions {
   bool use_imu = true;                     ///< Use IMU samples for rotation prediction and gravity.
   /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior.
   double imu_rotation_prior_sigma_deg = 0.0;
+  MonoInitializerOptions mono_init;  ///< Two-view initialisation of monocular maps.
+  /// Mono-inertial: keyframe time span [s] of the map at the inertial initialisation and at its two
+  /// refinements; increasing, > 0.
+  double inertial_init_after_s = 2.0;
+  double inertial_refine_after_s = 5.0;
+  double inertial_final_refine_after_s = 15.0;
+  imu::InertialInitOptions inertial_init;  ///< Mono-inertial scale / gravity / bias estimation.
   void validate() const;
 };
 
-enum class TrackingState { kTracking, kInitialized, kLost };
+/// kInitializing: a monocular map is being initialised; the frame has no pose estimate.
+enum class TrackingState { kTracking, kInitialized, kLost, kInitializing };
 const char* toString(TrackingState state);
 
 struct StageTimes {
@@ -63,6 +79,10 @@ struct TrackingResult {
   int matches = 0;
   int inliers = 0;
   bool keyframe = false;
+  /// Mono-inertial: the similarity applied to the world of the current map at this frame (scale
+  /// and gravity alignment); poses recorded earlier on this map change with it (see
+  /// mapping::transformBodyPose).
+  std::optional<Sim3d> world_change;
   StageTimes times;
 };
 
@@ -85,6 +105,8 @@ class MappingSink {
   /// Discards the queued jobs and returns once no job runs any more: the tracker is about to drop
   /// the map (and reset the LocalMapper) that they work on.
   virtual void discardPending() = 0;
+  /// Returns once every job submitted so far has run (the map is quiet until the next submit).
+  virtual void waitIdle() = 0;
 };
 
 class Tracker {
@@ -102,6 +124,9 @@ class Tracker {
   const map::Map& map() const { return *map_; }
   bool hasMap() const { return map_ != nullptr; }
   int resets() const { return resets_; }
+  bool isMonocular() const { return cameras_.size() == 1; }
+  /// The left camera's pose in the body frame.
+  const SE3d& T_b_c0() const { return T_b_c0_; }
 
   /// Hands the local-mapping jobs to `sink` (not owned, must outlive its use; nullptr = run them at
   /// once). With a sink, track() does not wait for local BA, so the pose of a new keyframe's frame
@@ -122,7 +147,17 @@ class Tracker {
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
   SE3d initialPose(const Frame& frame, const SE3d& predicted) const;
+  SE3d gravityAlignedPose(const Frame& frame) const;
+  bool inertialReady() const { return !isMonocular() || inertial_stage_ > 0; }
+  void initializeMono(const Frame& frame, TrackingResult& result);
+  bool buildMonoMap(const MonoInitialization& init, const Frame& frame, TrackingResult& result);
+  void setMotionFromInitialization(const SE3d& T_w_b0, TimeNs t0_ns, const SE3d& T_w_b1,
+                                   TimeNs t1_ns);
+  void normalizeMonoScale(map::KeyFrameId first);
+  void recordImu(const Frame& frame);
+  void alignInertialIfDue(TrackingResult& result);
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
+  std::unique_ptr<map::Map> newMap() const;
   void startMap(const Frame& frame, const SE3d& T_w_b);
   std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
                                              TrackingResult& result);
@@ -144,6 +179,10 @@ class Tracker {
                                                   const std::vector<map::MapPointId>& tracked);
   void updateMotion(const SE3d& T_w_b, TimeNs t_ns);
   void runMapping(std::function<void()> job);
+  /// Returns once the mapping jobs submitted so far have run (at once without a sink).
+  void waitForMapping();
+  /// The query keypoint of a map point in projection matching.
+  features::Keypoint queryKeypoint(map::MapPointId id) const;
 
   TrackerOptions options_;
   PyramidInfo pyramid_;
@@ -157,7 +196,6 @@ class Tracker {
   std::unique_ptr<map::Map> map_;
   mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).
   MappingSink* mapping_sink_ = nullptr;
-  std::unordered_map<map::MapPointId, features::Keypoint> point_keypoint_;  ///< For the query.
 
   bool has_map_ = false;
   bool has_last_ = false;
@@ -170,6 +208,10 @@ class Tracker {
   map::KeyFrameId reference_ = map::kNoKeyFrame;
   TimeNs t_reference_ns_ = 0;
   int resets_ = 0;
+
+  std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
+  std::vector<io::ImuSample> imu_history_;           ///< Mono-inertial: samples of the current map.
+  int inertial_stage_ = 0;  ///< Mono-inertial: inertial estimations done on the current map.
 };
 
 }  // namespace superdyna::tracking

@@ -1,0 +1,121 @@
+#include "superdyna/mapping/point_triangulator.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "superdyna/core/error.h"
+#include "support/test_support.h"
+
+namespace superdyna::mapping {
+namespace {
+
+constexpr double kFocalPx = 450.0;
+
+/// Two keyframes with known poses looking at a scene of random points, each point seen by one
+/// keypoint per keyframe with the same random descriptor. The first `shared` points are already
+/// map points (they make the keyframes covisible); the others are for the triangulator.
+class TwoKeyFrameScene : public ::testing::Test {
+ protected:
+  static constexpr int kShared = 30;
+  static constexpr int kFree = 200;
+
+  void SetUp() override {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> xy(-0.5, 0.5), depth(3.0, 8.0);
+    std::uniform_int_distribution<int> byte(0, 255);
+    const int n = kShared + kFree;
+    for (int i = 0; i < n; ++i) {
+      const double z = depth(rng);
+      points.emplace_back(xy(rng) * z, xy(rng) * z, z);
+    }
+    cv::Mat descriptors(n, 32, CV_8UC1);
+    for (int r = 0; r < n; ++r)
+      for (int c = 0; c < 32; ++c)
+        descriptors.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+    // The body is the camera here; keyframe 1 moved 0.4 m sideways and turned slightly.
+    poses = {SE3d(), SE3d(expSO3(Eigen::Vector3d(0.0, -0.05, 0.0)), Eigen::Vector3d(0.4, 0, 0.05))};
+    // Keyframe 1 lists its keypoints in reverse order, so indices differ between the two.
+    for (int k = 0; k < 2; ++k) {
+      map::KeyFrame kf;
+      kf.T_w_b = poses[k];
+      kf.descriptors = cv::Mat(n, 32, CV_8UC1);
+      for (int j = 0; j < n; ++j) {
+        const int i = k == 0 ? j : n - 1 - j;
+        const Eigen::Vector3d p_c = poses[k].inverse() * points[static_cast<std::size_t>(i)];
+        map::KeyFrameKeypoint keypoint;
+        keypoint.normalized = p_c.head<2>() / p_c.z();
+        keypoint.pixel = kFocalPx * keypoint.normalized + Eigen::Vector2d(376, 240);
+        kf.keypoints.push_back(keypoint);
+        descriptors.row(i).copyTo(kf.descriptors.row(j));
+      }
+      ids[k] = map.addKeyFrame(std::move(kf));
+    }
+    for (int i = 0; i < kShared; ++i) {
+      map::MapPoint point;
+      point.p_w = points[static_cast<std::size_t>(i)];
+      point.descriptor = descriptors.row(i).clone();
+      const map::MapPointId id = map.addMapPoint(std::move(point));
+      map.addObservation(id, ids[0], i);
+      map.addObservation(id, ids[1], n - 1 - i);
+    }
+  }
+
+  optim::ReprojectionCamera camera() const {
+    optim::ReprojectionCamera c;
+    c.fx = c.fy = kFocalPx;
+    return c;
+  }
+
+  map::Map map;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<SE3d> poses;
+  map::KeyFrameId ids[2] = {map::kNoKeyFrame, map::kNoKeyFrame};
+};
+
+TEST_F(TwoKeyFrameScene, TriangulatesTheFreeKeypointsAtTheirTruePositions) {
+  const PointTriangulator triangulator({}, camera());
+  const std::vector<map::MapPointId> created = triangulator.createPoints(map, ids[1]);
+  // Points whose rays are nearly parallel (far and central) are rightly skipped; most are not.
+  EXPECT_GT(static_cast<int>(created.size()), 170);
+  EXPECT_LE(static_cast<int>(created.size()), kFree);
+  const int n = kShared + kFree;
+  for (const map::MapPointId id : created) {
+    const auto point = map.mapPoint(id);
+    ASSERT_TRUE(point);
+    ASSERT_EQ(point->numObservations(), 2);
+    const int index0 = point->observations.at(ids[0]);
+    EXPECT_EQ(point->observations.at(ids[1]), n - 1 - index0);  // the right pair
+    EXPECT_GE(index0, kShared);
+    EXPECT_LT((point->p_w - points[static_cast<std::size_t>(index0)]).norm(), 1e-6);
+    EXPECT_GT(point->max_distance_m, 0.0);
+  }
+  EXPECT_EQ(map.consistencyError(), "");
+  // Everything that could be triangulated was: a second pass adds nothing.
+  EXPECT_TRUE(triangulator.createPoints(map, ids[1]).empty());
+}
+
+TEST_F(TwoKeyFrameScene, SkipsNeighboursWithoutBaseline) {
+  map.setKeyFramePose(ids[1], SE3d(poses[1].q, Eigen::Vector3d(0.001, 0, 0)));
+  const PointTriangulator triangulator({}, camera());
+  EXPECT_TRUE(triangulator.createPoints(map, ids[1]).empty());
+}
+
+TEST_F(TwoKeyFrameScene, WrongPosesGiveNoPoints) {
+  // With keyframe 1 moved up instead of sideways, the epipolar lines miss the true matches.
+  map.setKeyFramePose(ids[1], SE3d(poses[1].q, Eigen::Vector3d(0.0, 0.4, 0.05)));
+  const PointTriangulator triangulator({}, camera());
+  EXPECT_LT(triangulator.createPoints(map, ids[1]).size(), 10u);
+}
+
+TEST(PointTriangulatorOptions, RejectsBadValues) {
+  PointTriangulatorOptions options;
+  options.neighbours = 0;
+  test::expectError<OptionError>([&] { options.validate(); }, {"triangulation_neighbours"});
+  options = {};
+  options.ratio = 0.0;
+  test::expectError<OptionError>([&] { options.validate(); }, {"triangulation_ratio"});
+}
+
+}  // namespace
+}  // namespace superdyna::mapping
