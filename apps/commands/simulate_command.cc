@@ -171,6 +171,12 @@ class SimulateCommand : public Command {
                      "before sensor noise, clipping to [0, 255] and rounding")
         ->capture_default_str()
         ->group(group);
+    sub_->add_option("--illumination-gain", options_.illumination.base_gain,
+                     "Constant gain of both cameras, whatever --illumination; below 1 a dim "
+                     "scene (lower contrast against the same sensor noise)")
+        ->check(CLI::Range(0.05, 4.0))
+        ->capture_default_str()
+        ->group(group);
     sub_->add_option("--illumination-drift", options_.illumination.drift_amplitude,
                      "drift: gain 1 + A sin(2 pi t / period)")
         ->check(CLI::Range(0.0, 0.9))

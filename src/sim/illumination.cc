@@ -34,6 +34,7 @@ void requirePositive(double value, const char* option) {
 }  // namespace
 
 void IlluminationOptions::validate() const {
+  requireRange(base_gain, 0.05, 4.0, "illumination-gain");
   requireRange(drift_amplitude, 0.0, 0.9, "illumination-drift");
   requirePositive(drift_period_s, "illumination-drift-period");
   requireRange(step_amplitude, 0.0, 4.0, "illumination-step");
@@ -109,7 +110,8 @@ double IlluminationSchedule::flickerFactor(int camera, TimeNs t_ns) const {
 
 double IlluminationSchedule::gain(int camera, TimeNs t_ns) const {
   const double stereo = camera == 1 ? options_.stereo_gain_ratio : 1.0;
-  return driftFactor(t_ns) * stepFactor(t_ns) * flickerFactor(camera, t_ns) * stereo;
+  return options_.base_gain * driftFactor(t_ns) * stepFactor(t_ns) * flickerFactor(camera, t_ns) *
+         stereo;
 }
 
 }  // namespace superdyna::sim

@@ -479,14 +479,15 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
   out << fmt::format(
       "# Image timestamps are mid-exposure; blur averages sub-frames over the exposure.\n"
       "motion_blur:\n  exposure_ms: {}\n  samples: {}\n  step_px: {}\n  max_samples: {}\n"
-      "# gain = drift * steps * flicker (* stereo_gain_ratio for cam1), applied to the radiance\n"
-      "# before noise, clipping to [0, 255] and rounding.\n"
-      "illumination:\n  effects: {}\n  drift_amplitude: {}\n  drift_period_s: {}\n"
+      "# gain = base_gain * drift * steps * flicker (* stereo_gain_ratio for cam1), applied to\n"
+      "# the radiance before noise, clipping to [0, 255] and rounding.\n"
+      "illumination:\n  effects: {}\n  base_gain: {}\n  drift_amplitude: {}\n  drift_period_s: {}\n"
       "  step_amplitude: {}\n  step_interval_s: {}\n  flicker_amplitude: {}\n"
       "  stereo_gain_ratio: {}\n",
       1e3 * o.motion_blur_exposure_s, blurSamplesText(o.motion_blur_samples), o.motion_blur_step_px,
-      o.motion_blur_max_samples, illuminationModes(il), il.drift_amplitude, il.drift_period_s,
-      il.step_amplitude, il.step_interval_s, il.flicker_amplitude, il.stereo_gain_ratio);
+      o.motion_blur_max_samples, illuminationModes(il), il.base_gain, il.drift_amplitude,
+      il.drift_period_s, il.step_amplitude, il.step_interval_s, il.flicker_amplitude,
+      il.stereo_gain_ratio);
   out << fmt::format(
       "summary:\n  frames: {}\n  imu_samples: {}\n"
       "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"

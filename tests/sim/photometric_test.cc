@@ -301,10 +301,11 @@ TEST(IlluminationTest, EffectsMultiplyAndTheStereoRatioScalesCam1) {
   IlluminationOptions options;
   setIlluminationModes("all", &options);
   options.stereo_gain_ratio = 1.25;
+  options.base_gain = 0.5;
   const IlluminationSchedule schedule(options, 8, 0);
   for (const TimeNs t : {TimeNs{3'000'000'000}, TimeNs{11'050'000'000}}) {
     for (const int camera : {0, 1}) {
-      const double expected = schedule.driftFactor(t) * schedule.stepFactor(t) *
+      const double expected = 0.5 * schedule.driftFactor(t) * schedule.stepFactor(t) *
                               schedule.flickerFactor(camera, t) * (camera == 1 ? 1.25 : 1.0);
       EXPECT_DOUBLE_EQ(schedule.gain(camera, t), expected);
     }
@@ -330,6 +331,11 @@ TEST(IlluminationTest, ParsesEffectListsAndRejectsBadOptions) {
   options = {};
   options.step_interval_s = 0.0;
   EXPECT_THROW(IlluminationSchedule(options, 1, 0), OptionError);
+  options = {};
+  options.base_gain = 0.0;
+  EXPECT_THROW(options.validate(), OptionError);
+  options.base_gain = 0.7;
+  EXPECT_TRUE(options.active());
   options = {};
   options.stereo_gain_ratio = 5.0;
   EXPECT_THROW(options.validate(), OptionError);

@@ -9,8 +9,9 @@
 //            |log gain| uniform in [0.5, 1] * log(1 + A_s)
 //   flicker: 1 + A_f (2 u - 1), u uniform in [0, 1)  independent per frame and per camera
 //
-// and cam1 is further scaled by stereo_gain_ratio (a constant auto-exposure mismatch between the
-// two cameras). Every value is a pure function of (options, seed, camera, time): deterministic.
+// with a constant base gain (below 1: a dim scene, where the sensor noise weighs more), and cam1
+// is further scaled by stereo_gain_ratio (a constant auto-exposure mismatch between the cameras).
+// Every value is a pure function of (options, seed, camera, time): deterministic.
 
 #include <cstdint>
 #include <string>
@@ -20,6 +21,7 @@
 namespace superdyna::sim {
 
 struct IlluminationOptions {
+  double base_gain = 1.0;  ///< Constant gain of both cameras, in [0.05, 4].
   bool drift = false;
   double drift_amplitude = 0.4;  ///< Relative swing A_d of the sinusoid, [0, 0.9].
   double drift_period_s = 20.0;  ///< Period P [s], > 0.
@@ -31,7 +33,9 @@ struct IlluminationOptions {
   double stereo_gain_ratio = 1.0;  ///< cam1 gain / cam0 gain, in [0.25, 4].
 
   /// True when some effect changes a gain away from 1.
-  bool active() const { return drift || steps || flicker || stereo_gain_ratio != 1.0; }
+  bool active() const {
+    return drift || steps || flicker || base_gain != 1.0 || stereo_gain_ratio != 1.0;
+  }
   /// Throws OptionError naming the first invalid field (as its command-line option).
   void validate() const;
 };
