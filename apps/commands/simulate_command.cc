@@ -27,10 +27,12 @@ class SimulateCommand : public Command {
     addMotionOptions();
     addSceneOptions();
     addSensorOptions();
+    addPhotometricOptions();
     sub_->footer(
         "Output: OUT/mav0/{cam0,cam1,imu0,state_groundtruth_estimate0} as in EuRoC, plus per-frame "
         "instance masks (camX/mask, 16-bit, 0 = background), instances.csv, instance_states.csv, "
-        "landmarks.csv and OUT/simulation.yaml. Deterministic for a given --seed.");
+        "landmarks.csv, photometric.csv (per-frame gains and blur, with photometric challenges) "
+        "and OUT/simulation.yaml. Deterministic for a given --seed.");
   }
 
   CLI::App* subcommand() const override { return sub_; }
@@ -131,21 +133,81 @@ class SimulateCommand : public Command {
                      "Apply EuRoC cam0's radial-tangential distortion: on or off")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
-    sub_->add_option("--illumination-change", options_.illumination_change,
-                     "Relative brightness swing over a 20 s period, 0..0.9")
-        ->check(CLI::Range(0.0, 0.9))
-        ->capture_default_str();
-    sub_->add_option("--motion-blur", options_.motion_blur_exposure_s,
-                     "Exposure time for motion blur [s], 0 = none")
-        ->check(CLI::Range(0.0, 0.1))
-        ->capture_default_str();
-    sub_->add_option("--blur-samples", options_.motion_blur_samples,
-                     "Sub-frames averaged for motion blur")
-        ->check(CLI::Range(2, 64))
-        ->capture_default_str();
     sub_->add_option("--baseline", options_.rig.baseline_m, "Stereo baseline [m]")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+  }
+
+  /// Motion blur and illumination changes, to stress the visual front end.
+  void addPhotometricOptions() {
+    const std::string group = "Photometric challenges";
+    sub_->add_option("--exposure-ms", exposure_ms_,
+                     "Exposure time for motion blur [ms], 0 = sharp. Each image averages "
+                     "sub-frames over [t - E/2, t + E/2] (its timestamp t is mid-exposure) for "
+                     "the camera and the moving agents; masks and depth stay those at t")
+        ->check(CLI::Range(0.0, 100.0))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--blur-samples", options_.motion_blur_samples,
+                     "Sub-frames per blurred image; 0 = automatic: enough that consecutive "
+                     "sub-frames are at most --blur-step px apart (rendering time grows with it)")
+        ->check(CLI::Range(0, 64))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--blur-step", options_.motion_blur_step_px,
+                     "Automatic sub-frames: largest image motion between two of them [px]")
+        ->check(CLI::Range(0.1, 10.0))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--blur-max-samples", options_.motion_blur_max_samples,
+                     "Automatic sub-frames: at most this many per image")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination", illumination_,
+                     "Exposure gain effects, comma-separated: none, drift (slow sinusoid), steps "
+                     "(abrupt exposure jumps, alternately brighter and darker), flicker "
+                     "(independent per frame and camera), all. The gain multiplies the radiance "
+                     "before sensor noise, clipping to [0, 255] and rounding")
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-gain", options_.illumination.base_gain,
+                     "Constant gain of both cameras, whatever --illumination; below 1 a dim "
+                     "scene (lower contrast against the same sensor noise)")
+        ->check(CLI::Range(0.05, 4.0))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-drift", options_.illumination.drift_amplitude,
+                     "drift: gain 1 + A sin(2 pi t / period)")
+        ->check(CLI::Range(0.0, 0.9))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-drift-period", options_.illumination.drift_period_s,
+                     "drift: period [s]")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-step", options_.illumination.step_amplitude,
+                     "steps: gain levels within [1 / (1 + A), 1 + A], |log gain| at least half of "
+                     "log(1 + A); the first interval has gain 1")
+        ->check(CLI::Range(0.0, 4.0))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-step-interval", options_.illumination.step_interval_s,
+                     "steps: time between exposure jumps [s]")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--illumination-flicker", options_.illumination.flicker_amplitude,
+                     "flicker: gain 1 + A u, u uniform in [-1, 1]")
+        ->check(CLI::Range(0.0, 0.5))
+        ->capture_default_str()
+        ->group(group);
+    sub_->add_option("--stereo-gain-ratio", options_.illumination.stereo_gain_ratio,
+                     "cam1 gain / cam0 gain (auto-exposure mismatch), whatever --illumination")
+        ->check(CLI::Range(0.25, 4.0))
+        ->capture_default_str()
+        ->group(group);
   }
 
   void applyChoices() {
@@ -159,6 +221,8 @@ class SimulateCommand : public Command {
     options_.texture_dir = texture_dir_;
     options_.noise = noise_ == "on";
     options_.rig.distortion = distortion_ == "on";
+    options_.motion_blur_exposure_s = 1e-3 * exposure_ms_;
+    sim::setIlluminationModes(illumination_, &options_.illumination);
   }
 
   CLI::App* sub_ = nullptr;
@@ -173,6 +237,8 @@ class SimulateCommand : public Command {
   std::optional<fs::path> texture_dir_;
   std::string noise_ = "on";
   std::string distortion_ = "off";
+  double exposure_ms_ = 0.0;
+  std::string illumination_ = "none";
 };
 
 }  // namespace

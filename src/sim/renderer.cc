@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "superdyna/core/error.h"
+#include "superdyna/sim/hash.h"
 
 namespace superdyna::sim {
 
@@ -27,6 +28,8 @@ constexpr int kMaxEdgeSubdivisions = 12;
 constexpr int kRowsPerChunk = 16;
 /// Incidence cosine below which the footprint stops growing (grazing surfaces stay sharp-ish).
 constexpr double kMinIncidenceCosine = 0.1;
+/// Spacing of the pixels whose motion over the exposure sets the automatic sub-frame count.
+constexpr int kMotionGridPx = 8;
 
 /// Runs fn(row_begin, row_end) on chunks of kRowsPerChunk rows; chunk k goes to thread
 /// k % threads. Each pixel is computed by exactly one call, so the result does not depend on the
@@ -54,15 +57,6 @@ int defaultThreadCount() {
   return static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
 }
 
-/// SplitMix64 finaliser, used as a counter-based random generator: the noise of a pixel is a
-/// pure function of (seed, t_ns, pixel), whatever the threads.
-std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
 /// Standard normal quantiles at the centres of 2^16 equal-probability bins: 16 random bits
 /// index a normal number (truncated at 4.3 sigma, plenty for sensor noise) for the cost of a
 /// table lookup instead of a logarithm and a sine per pixel.
@@ -85,6 +79,15 @@ const std::vector<float>& normalQuantiles() {
     return quantiles;
   }();
   return table;
+}
+
+/// The automatic sub-frame count: consecutive sub-frames at most step_px apart, odd so that the
+/// middle one is the central frame (rendered anyway), at most max_samples.
+int automaticBlurSamples(double motion_px, double step_px, int max_samples) {
+  const double needed = std::ceil(motion_px / step_px);
+  int samples = needed >= max_samples ? max_samples : std::max(1, static_cast<int>(needed));
+  if (samples % 2 == 0 && samples < max_samples) ++samples;
+  return samples;
 }
 
 void requireFinite(double value, double min_value, const char* name) {
@@ -196,7 +199,8 @@ struct Renderer::CameraQuad {
   Eigen::Vector2d texture_offset_m;
   const Texture* texture = nullptr;
   std::uint16_t instance_id = 0;
-  cv::Rect box;  ///< Pixels whose rays may hit the quad.
+  std::size_t object = 0;  ///< Index of the quad's object in the scene.
+  cv::Rect box;            ///< Pixels whose rays may hit the quad.
 };
 
 /// Result of the z-buffer pass: per pixel, the nearest hit's ray distance and quad.
@@ -226,8 +230,16 @@ void RenderOptions::validate() const {
   requireFinite(noise_sigma, 0.0, "noise_sigma");
   requireFinite(exposure_s, 0.0, "exposure_s");
   if (!(near_m > 0.0) || !std::isfinite(near_m)) throw OptionError("near_m", "must be > 0");
-  if (blur_samples < 1 || blur_samples > 256) {
-    throw OptionError("blur_samples", fmt::format("must be in [1, 256], got {}", blur_samples));
+  if (blur_samples < 0 || blur_samples > 256) {
+    throw OptionError("blur_samples",
+                      fmt::format("must be in [0, 256] (0 = automatic), got {}", blur_samples));
+  }
+  if (!(blur_step_px > 0.0) || !std::isfinite(blur_step_px)) {
+    throw OptionError("blur_step_px", fmt::format("must be > 0, got {}", blur_step_px));
+  }
+  if (max_blur_samples < 1 || max_blur_samples > 256) {
+    throw OptionError("max_blur_samples",
+                      fmt::format("must be in [1, 256], got {}", max_blur_samples));
   }
   if (threads < 1 || threads > 256) {
     throw OptionError("threads", fmt::format("must be in [1, 256], got {}", threads));
@@ -346,6 +358,7 @@ std::vector<Renderer::CameraQuad> Renderer::prepareQuads(const Scene& scene, con
       q.texture_offset_m = quad.texture_offset_m;
       q.texture = &scene.textures[static_cast<std::size_t>(quad.texture)];
       q.instance_id = object.instance_id;
+      q.object = o;
       q.box = box;
       quads.push_back(q);
     }
@@ -437,13 +450,60 @@ void Renderer::writeInstanceAndDepth(const std::vector<CameraQuad>& quads,
   });
 }
 
-void Renderer::renderRadiance(const Scene& scene, const SE3d& T_w_c, TimeNs t_ns,
-                              const RenderOptions& options, Visibility& visibility, float* radiance,
-                              RenderResult* central) const {
-  const std::vector<CameraQuad> quads = prepareQuads(scene, T_w_c, t_ns, options.near_m);
+std::vector<Renderer::CameraQuad> Renderer::renderRadiance(const Scene& scene, const SE3d& T_w_c,
+                                                           TimeNs t_ns,
+                                                           const RenderOptions& options,
+                                                           Visibility& visibility, float* radiance,
+                                                           RenderResult* central) const {
+  std::vector<CameraQuad> quads = prepareQuads(scene, T_w_c, t_ns, options.near_m);
   castRays(quads, options, visibility);
   shade(quads, visibility, options, radiance);
   if (central != nullptr) writeInstanceAndDepth(quads, visibility, options, *central);
+  return quads;
+}
+
+double Renderer::exposureMotionPx(const Scene& scene, const std::function<SE3d(TimeNs)>& T_w_c_at,
+                                  TimeNs t_ns, double exposure_s,
+                                  const std::vector<CameraQuad>& quads,
+                                  const Visibility& visibility) const {
+  const TimeNs t_begin = t_ns - secondsToNs(0.5 * exposure_s);
+  const TimeNs t_end = t_ns + secondsToNs(0.5 * exposure_s);
+  const SE3d T_w_c = T_w_c_at(t_ns);
+  const SE3d T_c_w_begin = T_w_c_at(t_begin).inverse(), T_c_w_end = T_w_c_at(t_end).inverse();
+  // How each object seen at t_ns moves a world point over the exposure: p(t') = T_w_o(t') *
+  // T_w_o(t)^-1 * p(t). Identity for the static world and while an object is out of the world.
+  struct ObjectMotion {
+    bool known = false;
+    SE3d begin, end;
+  };
+  std::vector<ObjectMotion> motions(scene.objects.size());
+  const auto motionOf = [&](std::size_t o) -> const ObjectMotion& {
+    ObjectMotion& motion = motions[o];
+    if (motion.known) return motion;
+    motion.known = true;
+    const PoseTrack& track = scene.objects[o].T_w_o;
+    if (!track) return motion;
+    const std::optional<SE3d> now = track(t_ns), begin = track(t_begin), end = track(t_end);
+    if (!now || !begin || !end) return motion;
+    motion.begin = *begin * now->inverse();
+    motion.end = *end * now->inverse();
+    return motion;
+  };
+  const int width = camera_.width();
+  double max_motion = 0.0;
+  for (int r = kMotionGridPx / 2; r < camera_.height(); r += kMotionGridPx) {
+    for (int c = kMotionGridPx / 2; c < width; c += kMotionGridPx) {
+      const std::size_t i = static_cast<std::size_t>(r) * width + c;
+      const std::int32_t qi = visibility.quad[i];
+      if (qi < 0) continue;
+      const ObjectMotion& motion = motionOf(quads[static_cast<std::size_t>(qi)].object);
+      const Eigen::Vector3d p_w = T_w_c * (visibility.ray_distance[i] * bearings_[i]);
+      const auto u_begin = camera_.project(T_c_w_begin * (motion.begin * p_w));
+      const auto u_end = camera_.project(T_c_w_end * (motion.end * p_w));
+      if (u_begin && u_end) max_motion = std::max(max_motion, (*u_end - *u_begin).norm());
+    }
+  }
+  return max_motion;
 }
 
 RenderResult Renderer::render(const Scene& scene, const SE3d& T_w_c, TimeNs t_ns,
@@ -460,16 +520,24 @@ RenderResult Renderer::render(const Scene& scene, const std::function<SE3d(TimeN
   thread_local FrameBuffers buffers;
   buffers.resize(pixels);
   RenderResult result;
-  renderRadiance(scene, T_w_c_at(t_ns), t_ns, options, buffers.visibility, buffers.central.data(),
-                 &result);
+  const std::vector<CameraQuad> central_quads = renderRadiance(
+      scene, T_w_c_at(t_ns), t_ns, options, buffers.visibility, buffers.central.data(), &result);
+  if (options.exposure_s > 0.0) {
+    result.exposure_motion_px = exposureMotionPx(scene, T_w_c_at, t_ns, options.exposure_s,
+                                                 central_quads, buffers.visibility);
+  }
+  result.blur_samples = options.blur_samples != 0
+                            ? options.blur_samples
+                            : automaticBlurSamples(result.exposure_motion_px, options.blur_step_px,
+                                                   options.max_blur_samples);
 
   // Motion blur: sub-frames at the centres of blur_samples equal slices of the exposure. With an
   // odd count the middle one is t_ns itself and reuses the central frame.
   const float* radiance = buffers.central.data();
-  if (options.blur_samples > 1) {
+  if (result.blur_samples > 1) {
     buffers.blurred.assign(pixels, 0.0f);
     buffers.sub_frame.resize(pixels);
-    const int samples = options.blur_samples;
+    const int samples = result.blur_samples;
     for (int k = 0; k < samples; ++k) {
       const double offset_s = options.exposure_s * ((k + 0.5) / samples - 0.5);
       const TimeNs t_k = t_ns + secondsToNs(offset_s);

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -23,8 +24,6 @@ namespace {
 
 /// Agents with at least this many pixels count as "in view".
 constexpr int kInViewPixels = 50;
-/// Period of the illumination swing [s].
-constexpr double kIlluminationPeriodS = 20.0;
 
 // ---------------------------------------------------------------- output folder and files
 
@@ -251,6 +250,39 @@ std::vector<TimeNs> frameTimes(const TimeRange& window, double rate_hz) {
   return times;
 }
 
+/// Exposure gains and motion blur over the sequence, for the summary.
+class PhotometricStats {
+ public:
+  void add(const std::array<double, 2>& gains, const RenderResult& left,
+           const RenderResult& right) {
+    for (const double gain : gains) {
+      min_gain_ = std::min(min_gain_, gain);
+      max_gain_ = std::max(max_gain_, gain);
+    }
+    for (const RenderResult* image : {&left, &right}) {
+      samples_sum_ += image->blur_samples;
+      motion_sum_ += image->exposure_motion_px;
+      max_motion_ = std::max(max_motion_, image->exposure_motion_px);
+      ++images_;
+    }
+  }
+
+  void summarize(SimulationSummary* summary) const {
+    if (images_ == 0) return;
+    summary->mean_blur_samples = samples_sum_ / images_;
+    summary->mean_exposure_motion_px = motion_sum_ / images_;
+    summary->max_exposure_motion_px = max_motion_;
+    summary->min_gain = min_gain_;
+    summary->max_gain = max_gain_;
+  }
+
+ private:
+  double min_gain_ = std::numeric_limits<double>::infinity();
+  double max_gain_ = -std::numeric_limits<double>::infinity();
+  double samples_sum_ = 0.0, motion_sum_ = 0.0, max_motion_ = 0.0;
+  int images_ = 0;
+};
+
 /// Everything the frame loop needs, prepared once.
 class SequenceWriter {
  public:
@@ -260,6 +292,7 @@ class SequenceWriter {
         spline_(spline),
         world_(world),
         frame_times_(std::move(frame_times)),
+        illumination_(options.illumination, options.seed, frame_times_.front()),
         camera_(options.rig.cameraModel()),
         renderers_{Renderer(camera_), Renderer(camera_)},
         T_b_c_{options.rig.T_b_c0(), options.rig.T_b_c1()},
@@ -272,6 +305,14 @@ class SequenceWriter {
     auto states = openForWriting(mav0_ / "instance_states.csv");
     data0 << "#timestamp [ns],filename\n";
     data1 << "#timestamp [ns],filename\n";
+    std::optional<std::ofstream> photometric;
+    if (photometricEffectsOn()) {
+      photometric = openForWriting(mav0_ / "photometric.csv");
+      *photometric << "# t_ns,gain_cam0,gain_cam1,blur_samples_cam0,blur_samples_cam1,"
+                      "exposure_motion_px_cam0,exposure_motion_px_cam1   (exposure centred on "
+                      "t_ns)\n";
+    }
+    PhotometricStats stats;
     states << "# t_ns,id,moving,pixels_cam0,pixels_cam1   (agents seen by either camera)\n";
     const int per_frame_landmarks =
         static_cast<int>(std::ceil(double(options_.landmark_count) / frame_times_.size()));
@@ -285,6 +326,13 @@ class SequenceWriter {
       writeFrame(1, name, right);
       data0 << t << ',' << name << '\n';
       data1 << t << ',' << name << '\n';
+      const std::array<double, 2> gains = {illumination_.gain(0, t), illumination_.gain(1, t)};
+      stats.add(gains, left, right);
+      if (photometric) {
+        *photometric << fmt::format("{},{:.9g},{:.9g},{},{},{:.3f},{:.3f}\n", t, gains[0], gains[1],
+                                    left.blur_samples, right.blur_samples, left.exposure_motion_px,
+                                    right.exposure_motion_px);
+      }
       const int in_view = writeInstanceStates(states, t, left, right, &coverage_sum);
       in_view_sum += in_view;
       summary->max_moving_in_view = std::max(summary->max_moving_in_view, double(in_view));
@@ -301,6 +349,7 @@ class SequenceWriter {
     summary->frames = static_cast<int>(frame_times_.size());
     summary->mean_moving_in_view = in_view_sum / frame_times_.size();
     summary->mean_agent_coverage = coverage_sum / frame_times_.size();
+    stats.summarize(summary);
   }
 
  private:
@@ -326,15 +375,20 @@ class SequenceWriter {
     }
   }
 
+  bool photometricEffectsOn() const {
+    return options_.illumination.active() || options_.motion_blur_exposure_s > 0.0;
+  }
+
   RenderOptions renderOptions(int cam, TimeNs t) const {
     RenderOptions render;
-    const double phase = 2.0 * M_PI * nsToSeconds(t - frame_times_.front()) / kIlluminationPeriodS;
-    render.gain = 1.0 + options_.illumination_change * std::sin(phase);
+    render.gain = illumination_.gain(cam, t);
     render.noise_sigma = options_.noise ? options_.pixel_noise_sigma : 0.0;
     render.seed = options_.seed * 2 + static_cast<std::uint64_t>(cam);
     if (options_.motion_blur_exposure_s > 0.0) {
       render.blur_samples = options_.motion_blur_samples;
       render.exposure_s = options_.motion_blur_exposure_s;
+      render.blur_step_px = options_.motion_blur_step_px;
+      render.max_blur_samples = options_.motion_blur_max_samples;
     }
     return render;
   }
@@ -381,6 +435,7 @@ class SequenceWriter {
   const Se3Spline& spline_;
   const World& world_;
   std::vector<TimeNs> frame_times_;
+  IlluminationSchedule illumination_;
   CameraModel camera_;
   std::array<Renderer, 2> renderers_;
   std::array<SE3d, 2> T_b_c_;
@@ -402,24 +457,46 @@ Se3Spline fitMotion(const MotionWindow& motion, const SimulationOptions& options
   return spline;
 }
 
+std::string blurSamplesText(int samples) {
+  return samples == 0 ? std::string("auto") : std::to_string(samples);
+}
+
 void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const MotionWindow& m,
                          const SimulationSummary& s) {
   auto out = openForWriting(file);
+  const IlluminationOptions& il = o.illumination;
   out << fmt::format(
       "# SuperDynaSLAM synthetic sequence: effective options and summary\n"
       "trajectory: {}\nmotion_convention: {}\nstart_s: {}\nduration_s: {}\nscene: {}\n"
-      "dynamic: {}\nseed: {}\nnoise: {}\ndistortion: {}\nillumination_change: {}\n"
-      "motion_blur_exposure_s: {}\ntexture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\n"
-      "imu_rate_hz: {}\nknot_spacing_s: {}\nsummary:\n  frames: {}\n  imu_samples: {}\n"
-      "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"
-      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  path_length_m: {:.3f}\n",
+      "dynamic: {}\nseed: {}\nnoise: {}\npixel_noise_sigma: {}\ndistortion: {}\n"
+      "texture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\nimu_rate_hz: {}\n"
+      "knot_spacing_s: {}\n",
       o.motion.trajectory_file ? o.motion.trajectory_file->string() : "procedural",
       toString(m.convention), o.motion.start_s, o.motion.duration_s, toString(o.world.scene),
-      toString(o.world.dynamic), o.seed, o.noise, o.rig.distortion, o.illumination_change,
-      o.motion_blur_exposure_s, o.texture_dir ? o.texture_dir->string() : "procedural",
-      o.rig.baseline_m, o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, s.frames,
-      s.imu_samples, s.static_agents, s.moving_agents, s.mean_moving_in_view, s.max_moving_in_view,
-      s.mean_agent_coverage, s.path_length_m);
+      toString(o.world.dynamic), o.seed, o.noise, o.pixel_noise_sigma, o.rig.distortion,
+      o.texture_dir ? o.texture_dir->string() : "procedural", o.rig.baseline_m,
+      o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s);
+  out << fmt::format(
+      "# Image timestamps are mid-exposure; blur averages sub-frames over the exposure.\n"
+      "motion_blur:\n  exposure_ms: {}\n  samples: {}\n  step_px: {}\n  max_samples: {}\n"
+      "# gain = base_gain * drift * steps * flicker (* stereo_gain_ratio for cam1), applied to\n"
+      "# the radiance before noise, clipping to [0, 255] and rounding.\n"
+      "illumination:\n  effects: {}\n  base_gain: {}\n  drift_amplitude: {}\n  drift_period_s: {}\n"
+      "  step_amplitude: {}\n  step_interval_s: {}\n  flicker_amplitude: {}\n"
+      "  stereo_gain_ratio: {}\n",
+      1e3 * o.motion_blur_exposure_s, blurSamplesText(o.motion_blur_samples), o.motion_blur_step_px,
+      o.motion_blur_max_samples, illuminationModes(il), il.base_gain, il.drift_amplitude,
+      il.drift_period_s, il.step_amplitude, il.step_interval_s, il.flicker_amplitude,
+      il.stereo_gain_ratio);
+  out << fmt::format(
+      "summary:\n  frames: {}\n  imu_samples: {}\n"
+      "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"
+      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  path_length_m: {:.3f}\n"
+      "  mean_blur_samples: {:.3f}\n  mean_exposure_motion_px: {:.3f}\n"
+      "  max_exposure_motion_px: {:.3f}\n  min_gain: {:.4f}\n  max_gain: {:.4f}\n",
+      s.frames, s.imu_samples, s.static_agents, s.moving_agents, s.mean_moving_in_view,
+      s.max_moving_in_view, s.mean_agent_coverage, s.path_length_m, s.mean_blur_samples,
+      s.mean_exposure_motion_px, s.max_exposure_motion_px, s.min_gain, s.max_gain);
 }
 
 }  // namespace
@@ -456,13 +533,19 @@ void SimulationOptions::validate() const {
   rig.validate();
   world.validate();
   imu.validate();
-  if (!(illumination_change >= 0.0 && illumination_change <= 0.9)) {
-    throw OptionError("illumination-change", "must be in [0, 0.9]");
+  illumination.validate();
+  if (!(motion_blur_exposure_s >= 0.0 && motion_blur_exposure_s <= 0.1)) {
+    throw OptionError("exposure-ms", "must be in [0, 100] ms");
   }
-  if (motion_blur_exposure_s < 0.0 || motion_blur_exposure_s > 0.1) {
-    throw OptionError("motion-blur", "exposure must be in [0, 0.1] s");
+  if (motion_blur_samples < 0 || motion_blur_samples > 64) {
+    throw OptionError("blur-samples", "must be in [0, 64] (0 = automatic)");
   }
-  if (motion_blur_samples < 2) throw OptionError("blur-samples", "must be >= 2");
+  if (!(motion_blur_step_px >= 0.1 && motion_blur_step_px <= 10.0)) {
+    throw OptionError("blur-step", "must be in [0.1, 10] px");
+  }
+  if (motion_blur_max_samples < 1 || motion_blur_max_samples > 64) {
+    throw OptionError("blur-max-samples", "must be in [1, 64]");
+  }
   if (pixel_noise_sigma < 0.0) throw OptionError("pixel-noise", "must be >= 0");
   if (landmark_count < 0) throw OptionError("landmarks", "must be >= 0");
   if (!(knot_spacing_s >= 0.01 && knot_spacing_s <= 1.0)) {

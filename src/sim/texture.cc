@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "superdyna/core/error.h"
+#include "superdyna/sim/hash.h"
 
 namespace superdyna::sim {
 
@@ -47,14 +48,6 @@ class Random {
  private:
   std::mt19937_64 engine_;
 };
-
-/// SplitMix64 finaliser: decorrelates nearby seeds (seed 1 and seed 2 give unrelated streams).
-std::uint64_t mixSeed(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
 
 // ------------------------------------------------------------------------------------------------
 // Drawing in texels with sizes given in metres
@@ -959,7 +952,7 @@ Texture Texture::uniform(double gray_level) {
 
 Texture Texture::procedural(const ProceduralTextureOptions& options) {
   options.validate();
-  Random random(mixSeed(options.seed ^ (static_cast<std::uint64_t>(options.style) << 56)));
+  Random random(mix64(options.seed ^ (static_cast<std::uint64_t>(options.style) << 56)));
   cv::Mat structure(options.height, options.width, CV_8UC1);
   Painter painter(structure, options.texel_m, random);
   const StyleLook look = paintStyle(options.style, painter);
@@ -980,7 +973,7 @@ Texture Texture::fromPhotos(const std::vector<cv::Mat>& photos, int width, int h
     if (!photo.empty()) grays.push_back(toGray8(photo));
   }
   if (grays.empty()) throw OptionError("photos", "no non-empty photo given");
-  Random random(mixSeed(seed));
+  Random random(mix64(seed));
   std::vector<cv::Rect> cells;
   // Cells of 1/4 to 1/2 of a typical photo keep crops large enough to look natural.
   const int min_side = std::max(16, std::min(grays.front().cols, grays.front().rows) / 4);

@@ -572,7 +572,7 @@ TEST(RendererTest, RejectsInvalidOptionsAndScenes) {
   scene.textures.push_back(Texture());
   scene.objects.push_back(staticObject(0, {makeQuad({-1, -1, 3}, {2, 0, 0}, {0, 2, 0}, 0)}));
   RenderOptions options;
-  options.blur_samples = 0;
+  options.blur_samples = -1;
   EXPECT_THROW(renderer.render(scene, SE3d(), 0, options), OptionError);
   options = {};
   options.near_m = 0.0;

@@ -221,7 +221,7 @@ TEST(SequenceGeneratorOptionsTest, RefusesANonEmptyOutputFolderAndBadOptions) {
   SimulationOptions options = shortSequence(dir.path());
   EXPECT_THROW(generateSequence(options), InputError);
   EXPECT_EQ(test::readFile(dir / "keep.txt"), "user data");
-  options.illumination_change = 2.0;
+  options.illumination.drift_amplitude = 2.0;
   EXPECT_THROW(generateSequence(options), OptionError);
 }
 

@@ -26,8 +26,13 @@ struct RenderOptions {
   double gain = 1.0;               ///< Illumination / exposure gain on all radiance, >= 0.
   double noise_sigma = 0.0;        ///< Std of additive Gaussian noise [gray levels]; 0 = off.
   std::uint64_t seed = 0;          ///< Noise seed; a frame's noise is a function of (seed, t_ns).
-  int blur_samples = 1;            ///< Sub-frames averaged for motion blur, >= 1 (1 = no blur).
-  double exposure_s = 0.0;         ///< Time the sub-frames span, centred on t_ns [s], >= 0.
+  /// Sub-frames averaged for motion blur: 1 = no blur, >= 2 a fixed count, 0 = automatic (the
+  /// fewest that keep consecutive sub-frames at most blur_step_px apart, up to
+  /// max_blur_samples).
+  int blur_samples = 1;
+  double exposure_s = 0.0;    ///< Time the sub-frames span, centred on t_ns [s], >= 0.
+  double blur_step_px = 1.0;  ///< Automatic count: largest image motion between sub-frames.
+  int max_blur_samples = 15;  ///< Automatic count: upper bound, in [1, 256].
   /// Near clipping distance along the optical axis [m], > 0. Only surfaces with z >= near_m
   /// are drawn, so a fisheye wider than 180 degrees shows the background behind the camera.
   double near_m = 0.05;
@@ -42,6 +47,10 @@ struct RenderResult {
   cv::Mat image;     ///< CV_8UC1 gray image (blurred, with noise, when the options say so).
   cv::Mat instance;  ///< CV_16UC1: instance_id of the object seen at t_ns, 0 = static or nothing.
   cv::Mat depth;     ///< CV_32FC1: z of the surface seen at t_ns [m], +inf where nothing is hit.
+  int blur_samples = 1;  ///< Sub-frames the image averages (1 = sharp).
+  /// Largest image motion over the exposure of the surfaces seen at t_ns (camera and agents
+  /// alike), on a grid of pixels [px]; 0 without exposure.
+  double exposure_motion_px = 0.0;
 };
 
 /// Camera-specific ray caster. Construction precomputes one unit bearing per pixel centre with
@@ -60,10 +69,11 @@ class Renderer {
                       const RenderOptions& options) const;
 
   /// Renders the scene at time t_ns [ns] with the camera pose given as a function of time, which
-  /// is called at t_ns and, for motion blur, at blur_samples times spread evenly over
-  /// [t_ns - exposure/2, t_ns + exposure/2]. The image averages those sub-frames; the instance
-  /// mask and depth are those at t_ns. Throws OptionError for invalid options, an empty pose
-  /// function or a quad whose texture index is out of range.
+  /// is called at t_ns and, for motion blur, at the centres of blur_samples equal slices of
+  /// [t_ns - exposure/2, t_ns + exposure/2] (t_ns is mid-exposure). Objects move along their own
+  /// tracks meanwhile. The image averages those sub-frames; the instance mask and depth are those
+  /// at t_ns. Throws OptionError for invalid options, an empty pose function or a quad whose
+  /// texture index is out of range.
   RenderResult render(const Scene& scene, const std::function<SE3d(TimeNs)>& T_w_c_at, TimeNs t_ns,
                       const RenderOptions& options) const;
 
@@ -82,9 +92,15 @@ class Renderer {
              const RenderOptions& options, float* radiance) const;
   void writeInstanceAndDepth(const std::vector<CameraQuad>& quads, const Visibility& visibility,
                              const RenderOptions& options, RenderResult& result) const;
-  void renderRadiance(const Scene& scene, const SE3d& T_w_c, TimeNs t_ns,
-                      const RenderOptions& options, Visibility& visibility, float* radiance,
-                      RenderResult* central) const;
+  /// Largest image motion over the exposure of the surfaces a grid of pixels sees at t_ns.
+  double exposureMotionPx(const Scene& scene, const std::function<SE3d(TimeNs)>& T_w_c_at,
+                          TimeNs t_ns, double exposure_s, const std::vector<CameraQuad>& quads,
+                          const Visibility& visibility) const;
+  /// Ray casts and shades one (sub-)frame; `central` also gets the mask and depth. Returns the
+  /// frame's quads (what visibility.quad indexes).
+  std::vector<CameraQuad> renderRadiance(const Scene& scene, const SE3d& T_w_c, TimeNs t_ns,
+                                         const RenderOptions& options, Visibility& visibility,
+                                         float* radiance, RenderResult* central) const;
 
   CameraModel camera_;
   std::vector<Eigen::Vector3d> bearings_;  ///< Unit bearing per pixel (row-major); 0 = invalid.

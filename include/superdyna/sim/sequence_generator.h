@@ -11,7 +11,11 @@
 //   mav0/instance_states.csv                                 per frame: id, moving, pixel counts
 //   mav0/segmentation_colors.csv                             id -> r,g,b (with segmentation)
 //   mav0/landmarks.csv                                       ground-truth 3D points on surfaces
+//   mav0/photometric.csv                                     per frame: gains, blur (when on)
 //   simulation.yaml                                          the effective options and summary
+//
+// Image timestamps are mid-exposure: with motion blur, an image averages the scene over
+// [t - exposure/2, t + exposure/2] while its mask, depth and ground truth are those at t.
 
 #include <cstdint>
 #include <filesystem>
@@ -20,6 +24,7 @@
 #include <string>
 
 #include "superdyna/core/camera_model.h"
+#include "superdyna/sim/illumination.h"
 #include "superdyna/sim/imu_simulator.h"
 #include "superdyna/sim/motion_source.h"
 #include "superdyna/sim/world_builder.h"
@@ -53,9 +58,13 @@ struct SimulationOptions {
   ImuNoiseOptions imu;
   bool noise = true;                    ///< IMU noise and bias walk, image noise.
   double pixel_noise_sigma = 2.0;       ///< Image noise std when noise is on [gray levels].
-  double illumination_change = 0.0;     ///< Relative brightness swing over the sequence, [0, 0.9].
+  IlluminationOptions illumination;     ///< Exposure gain over time (default: constant 1).
   double motion_blur_exposure_s = 0.0;  ///< Exposure time for motion blur (0 = none) [s].
-  int motion_blur_samples = 5;
+  /// Sub-frames per blurred image: 0 = automatic from the image motion over the exposure
+  /// (consecutive sub-frames at most motion_blur_step_px apart, up to motion_blur_max_samples).
+  int motion_blur_samples = 0;
+  double motion_blur_step_px = 1.0;
+  int motion_blur_max_samples = 15;
   bool semantic_color = false;  ///< Also write VIODE-like colour segmentation images.
   int landmark_count = 2000;    ///< Ground-truth landmarks to write (0 = none).
   double knot_spacing_s = 0.1;  ///< Spline knot spacing fitted to the motion [s].
@@ -76,7 +85,11 @@ struct SimulationSummary {
   double max_moving_in_view = 0.0;
   double mean_agent_coverage = 0.0;  ///< Fraction of cam0 pixels on agents, per frame.
   double path_length_m = 0.0;
-  double seconds = 0.0;  ///< Wall-clock time of the generation.
+  double mean_blur_samples = 1.0;        ///< Sub-frames per image, over both cameras.
+  double mean_exposure_motion_px = 0.0;  ///< Largest image motion over the exposure, per image.
+  double max_exposure_motion_px = 0.0;
+  double min_gain = 1.0, max_gain = 1.0;  ///< Exposure gain over both cameras.
+  double seconds = 0.0;                   ///< Wall-clock time of the generation.
 };
 
 /// Called after each frame with (frames done, frames total).
