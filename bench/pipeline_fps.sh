@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Speed of the whole stereo-inertial ORB pipeline (a benchmark, not a test): frames per second of
+# `superdyna run` in the deterministic (sequential) and concurrent pipelines, with the per-stage
+# breakdown (extract, stereo, track, keyframe + local BA) and the CPU time of each thread.
+# The 752x480 synthetic EuRoC-layout sequence (indoor, MH_03 motion, no moving agents) is generated
+# once into CACHE_DIR and reused.
+# Usage: bench/pipeline_fps.sh [CACHE_DIR=${XDG_CACHE_HOME:-$HOME/.cache}/superdyna_bench]
+#                              [DURATION_S=30] [SEED=3]
+# Environment: SUPERDYNA (the binary, default build/bin/superdyna), MODES (default
+# "deterministic concurrent").
+#
+# Wall-clock FPS depends on what else runs on the machine; the "CPU-bound FPS" columns estimate the
+# rate on otherwise idle cores from CPU times: sequential = frames / CPU s; concurrent on 2 cores =
+# frames / max(busiest thread, all threads / 2).
+set -euo pipefail
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+superdyna=${SUPERDYNA:-$repo/build/bin/superdyna}
+cache=${1:-${XDG_CACHE_HOME:-$HOME/.cache}/superdyna_bench}
+duration=${2:-30}
+seed=${3:-3}
+modes=${MODES:-deterministic concurrent}
+seq=$cache/fps_indoor_mh03_${duration}s_seed$seed
+trajectory=${SUPERDYNA_SHARED_DIR:-$repo/../shared}/data/trajectories/euroc/MH_03_medium.txt
+if [ ! -f "$seq/simulation.yaml" ]; then
+  echo "generating $seq (once)"
+  motion=()
+  [ -f "$trajectory" ] && motion=(--trajectory "$trajectory" --start 15)
+  rm -rf "$seq"
+  mkdir -p "$cache"
+  "$superdyna" simulate --out "$seq" "${motion[@]}" --duration "$duration" --scene indoor \
+    --dynamic none --seed "$seed" --landmarks 0 >"$cache/simulate.log" 2>&1
+fi
+out=$(mktemp -d "${TMPDIR:-/tmp}/superdyna_fps.XXXXXX")
+printf "| pipeline | frames | wall FPS | CPU-bound FPS | extract | stereo | track | kf + local BA | thread CPU s (front end / tracking / mapping) | ATE RMSE |\n"
+printf "|---|---|---|---|---|---|---|---|---|---|\n"
+for mode in $modes; do
+  flag=()
+  [ "$mode" = deterministic ] && flag=(--deterministic)
+  log=$out/$mode.log
+  "$superdyna" run --dataset euroc --path "$seq" --mode stereo-inertial \
+    --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$out/$mode.txt" "${flag[@]}" \
+    >"$log" 2>&1 || { echo "$mode run failed, see $log" >&2; exit 1; }
+  awk -v mode="$mode" '
+    /^[0-9]+ frames in/ { frames = $1; fps = $6; gsub(/[(]/, "", fps) }
+    /^timing per frame/ {
+      for (i = 1; i <= NF; ++i) {
+        v = $(i + 1); gsub(/,/, "", v)
+        if ($i == "extract") ex = v; if ($i == "stereo") st = v; if ($i == "track") tr = v
+        if ($i == "BA") ba = v
+      }
+    }
+    /^pipeline: deterministic/ { for (i = 1; i <= NF; ++i) if ($i == "CPU") cpu = $(i + 2)
+                                 fe = cpu; tk = "-"; mp = "-"; bound = frames / cpu }
+    /^pipeline: concurrent/ {
+      for (i = 1; i <= NF; ++i) {
+        if ($i == "end") fe = $(i + 1); if ($i == "tracking") tk = $(i + 1)
+        if ($i == "mapping") mp = $(i + 1)
+      }
+      m = fe; if (tk > m) m = tk; if (mp > m) m = mp
+      if ((fe + tk + mp) / 2 > m) m = (fe + tk + mp) / 2
+      bound = frames / m
+    }
+    /^ATE/ { ate = $5 }
+    END { printf "| %s | %d | %.1f | %.1f | %s ms | %s ms | %s ms | %s ms | %s / %s / %s | %s m |\n",
+                 mode, frames, fps, bound, ex, st, tr, ba, fe, tk, mp, ate }' "$log"
+done
+echo
+echo "sequence $seq; logs in $out; $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"
