@@ -56,6 +56,12 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
 
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
   const tracking::TrackingResult result = tracker_.track(front_end_.build(bundle));
+  if (result.world_change) {
+    // The inertial initialisation moved the map into the gravity-aligned frame: re-express the
+    // poses reported so far in it, so the trajectory stays in one frame.
+    for (auto& entry : trajectory_)
+      entry.T_w_x = *result.world_change * entry.T_w_x;
+  }
   trajectory_.push_back({bundle.t_ns, result.T_w_b});
   ++timings_.frames;
   if (result.keyframe) ++timings_.keyframes;

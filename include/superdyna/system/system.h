@@ -57,6 +57,7 @@ class System {
   std::size_t lostFrames() const { return lost_frames_; }
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const { return tracker_.map().numKeyFrames(); }
+  bool inertialInitialized() const { return tracker_.inertialInitialized(); }
   std::size_t numMapPoints() const { return tracker_.map().numMapPoints(); }
 
  private:

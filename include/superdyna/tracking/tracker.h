@@ -2,7 +2,9 @@
 // Stereo (optionally IMU-aided) tracking against a local map, sequential and deterministic.
 //
 // Per frame (built by the FrontEnd: features, stereo depth): pose prediction (constant
-// velocity; with IMU samples the rotation comes from gyroscope preintegration), projection of the
+// velocity; with IMU samples the rotation comes from gyroscope preintegration; once local mapping
+// has initialised the IMU, preintegration from the newest keyframe's optimised state, used as a
+// pose prior too - see inertial_prediction.h), projection of the
 // local map (points of the reference keyframe and its best covisible keyframes), matching by
 // projection, motion-only BA, keyframe decision, new stereo map points and local BA. Fewer inliers
 // than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
@@ -22,6 +24,7 @@
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/optim/pose_optimizer.h"
 #include "superdyna/tracking/frame.h"
+#include "superdyna/tracking/inertial_prediction.h"
 
 namespace superdyna::tracking {
 
@@ -41,8 +44,11 @@ struct TrackerOptions {
   bool stereo_pose_observations = true;    ///< Motion-only BA also uses right-camera points.
   bool imu_translation_prediction = true;  ///< IMU also predicts position (else const. vel.).
   bool use_imu = true;                     ///< Use IMU samples for rotation prediction and gravity.
-  /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior.
+  /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior. Used until
+  /// the inertial initialisation; after it the full pose prior of `imu_prior` applies.
   double imu_rotation_prior_sigma_deg = 0.0;
+  /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
+  InertialPriorOptions imu_prior;
   void validate() const;
 };
 
@@ -62,6 +68,9 @@ struct TrackingResult {
   int matches = 0;
   int inliers = 0;
   bool keyframe = false;
+  /// Set when local mapping moved the map into a new world frame during this frame (inertial
+  /// initialisation: gravity alignment): poses reported earlier map into the new frame by it.
+  std::optional<Sim3d> world_change;
   StageTimes times;
 };
 
@@ -83,6 +92,8 @@ class Tracker {
   TrackingResult track(const Frame& frame);
 
   const map::Map& map() const { return *map_; }
+  /// Local mapping has run the inertial initialisation on the current map.
+  bool inertialInitialized() const { return mapper_.inertialInitialized(); }
   int resets() const { return resets_; }
 
  private:
@@ -94,7 +105,12 @@ class Tracker {
   struct Prediction {
     SE3d T_w_b;
     bool from_imu = false;  ///< Rotation from gyroscope preintegration.
+    /// After the inertial initialisation: predicted from the newest keyframe, with a pose prior.
+    std::optional<InertialPrediction> inertial;
   };
+  std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
+  void applyLocalMapping(const mapping::LocalMappingResult& mapping, map::KeyFrameId id,
+                         TrackingResult& result);
   Prediction predictPose(const Frame& frame) const;
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
@@ -104,7 +120,7 @@ class Tracker {
   std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
                                              TrackingResult& result);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
-                         TrackingResult& result);
+                         const Prediction& prediction, TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;
   std::vector<features::Match> matchLocalPoints(const Frame& frame,
                                                 const std::vector<LocalPoint>& points,
@@ -115,7 +131,8 @@ class Tracker {
   bool needKeyFrame(const Frame& frame, int inliers) const;
   int referenceTrackedPoints() const;
   map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
-                                 const std::vector<map::MapPointId>& tracked);
+                                 const std::vector<map::MapPointId>& tracked,
+                                 const std::optional<Eigen::Vector3d>& v_w = std::nullopt);
   std::vector<map::MapPointId> createStereoPoints(const Frame& frame, const SE3d& T_w_b,
                                                   map::KeyFrameId keyframe,
                                                   const std::vector<map::MapPointId>& tracked);
@@ -129,6 +146,7 @@ class Tracker {
   std::vector<optim::ReprojectionCamera> cameras_;
   std::optional<io::ImuCalibration> imu_;
   imu::Bias bias_;
+  ImuSampleBuffer imu_since_keyframe_;  ///< Samples since the newest keyframe.
   double baseline_m_ = 0.0;
   std::unique_ptr<map::Map> map_;
   mapping::LocalMapper mapper_;
