@@ -45,6 +45,9 @@ void TrackerOptions::validate() const {
     throw OptionError("tracker.imu_rotation_prior_sigma_deg", "must be >= 0");
   }
   imu_prior.validate();
+  if (!(imu_min_keyframe_interval_s >= 0.0)) {
+    throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
+  }
 }
 
 const char* toString(TrackingState state) {
@@ -359,6 +362,10 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
 
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (frame.numStereo() < options_.keyframe_min_stereo) return false;
+  if (imu_ && !mapper_.inertialInitialized() &&
+      frame.t_ns - t_reference_ns_ < secondsToNs(options_.imu_min_keyframe_interval_s)) {
+    return false;
+  }
   if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();

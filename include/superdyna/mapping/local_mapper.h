@@ -53,7 +53,7 @@ struct LocalMapperOptions {
   int full_ba_iterations = 20;  ///< Iterations of the full VI BA after an initialisation, >= 1.
   int inertial_window_keyframes = 10;  ///< Temporal keyframes optimised by the VI local BA, >= 2.
   int inertial_fixed_covisible = 5;    ///< Fixed covisible keyframes of the VI local BA, >= 0.
-  int inertial_iterations = 10;        ///< Iterations of the VI local BA, >= 1.
+  int inertial_iterations = 5;         ///< Iterations of the VI local BA, >= 1.
   void validate() const;
 };
 

@@ -47,6 +47,10 @@ struct TrackerOptions {
   /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior. Used until
   /// the inertial initialisation; after it the full pose prior of `imu_prior` applies.
   double imu_rotation_prior_sigma_deg = 0.0;
+  /// With IMU, before the inertial initialisation: no new keyframe sooner than this after the
+  /// previous one [s], >= 0 (ORB-SLAM3: 0.25 s). Very short keyframe gaps have near-zero
+  /// preintegration covariance, so the visual pose noise would dominate the initialisation.
+  double imu_min_keyframe_interval_s = 0.25;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
   void validate() const;
