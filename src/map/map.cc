@@ -129,6 +129,8 @@ KeyFrameId Map::addKeyFrame(KeyFrame keyframe) {
   std::vector<MapPointId> requested = std::move(keyframe.map_points);
   keyframe.map_points.assign(keyframe.keypoints.size(), kNoMapPoint);
   keyframe.id = next_keyframe_id_++;
+  keyframe.previous = newest_keyframe_;
+  newest_keyframe_ = keyframe.id;
   covisibility_[keyframe.id];
   KeyFrame& stored = keyframes_.emplace(keyframe.id, std::move(keyframe)).first->second;
   for (std::size_t i = 0; i < requested.size(); ++i) {
@@ -192,9 +194,33 @@ std::optional<std::vector<MapPointId>> Map::eraseKeyFrame(KeyFrameId id) {
     if (point.observations.empty()) orphans.push_back(point_id);
   }
   covisibility_.erase(id);
+  relinkSuccessor(*keyframe);
+  if (newest_keyframe_ == id) newest_keyframe_ = keyframe->previous;
   keyframes_.erase(id);
   std::sort(orphans.begin(), orphans.end());
   return orphans;
+}
+
+void Map::relinkSuccessor(const KeyFrame& erased) {
+  for (auto& [other_id, other] : keyframes_) {
+    if (other.previous != erased.id) continue;
+    other.previous = erased.previous;
+    if (erased.previous == kNoKeyFrame) {
+      other.imu_from_previous.clear();  // nothing before it to integrate from
+    } else {
+      other.imu_from_previous = mergeImuSamples(erased.imu_from_previous, other.imu_from_previous);
+    }
+    return;
+  }
+}
+
+std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
+                                           const std::vector<io::ImuSample>& later) {
+  std::vector<io::ImuSample> merged = earlier;
+  for (const io::ImuSample& sample : later) {
+    if (merged.empty() || sample.t_ns > merged.back().t_ns) merged.push_back(sample);
+  }
+  return merged;
 }
 
 bool Map::eraseMapPoint(MapPointId id) {
@@ -259,6 +285,20 @@ bool Map::setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
   keyframe->bg = bg;
   keyframe->ba = ba;
   return true;
+}
+
+void Map::transformWorld(const Sim3d& T_new_old) {
+  const std::lock_guard lock(mutex_);
+  for (auto& [id, keyframe] : keyframes_) {
+    keyframe.T_w_b = T_new_old * keyframe.T_w_b;
+    keyframe.v_w = T_new_old.R * keyframe.v_w;
+  }
+  for (auto& [id, point] : points_) {
+    point.p_w = T_new_old * point.p_w;
+    point.normal_w = T_new_old.R * point.normal_w;
+    point.min_distance_m *= T_new_old.s;
+    point.max_distance_m *= T_new_old.s;
+  }
 }
 
 bool Map::setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w) {
@@ -342,6 +382,20 @@ bool Map::hasMapPoint(MapPointId id) const {
 std::vector<KeyFrameId> Map::keyFrameIds() const {
   const std::lock_guard lock(mutex_);
   return sortedKeys(keyframes_);
+}
+
+KeyFrameId Map::newestKeyFrame() const {
+  const std::lock_guard lock(mutex_);
+  return newest_keyframe_;
+}
+
+KeyFrameId Map::nextKeyFrame(KeyFrameId id) const {
+  const std::lock_guard lock(mutex_);
+  if (id == kNoKeyFrame || !keyframes_.contains(id)) return kNoKeyFrame;
+  for (const auto& [other_id, other] : keyframes_) {
+    if (other.previous == id) return other_id;
+  }
+  return kNoKeyFrame;
 }
 
 std::vector<MapPointId> Map::mapPointIds() const {

@@ -1,14 +1,12 @@
 #include "superdyna/mapping/local_mapper.h"
 
-#include <ceres/ceres.h>
-
 #include <algorithm>
 #include <cmath>
 #include <memory>
 #include <set>
 
 #include "superdyna/core/error.h"
-#include "superdyna/optim/se3_manifold.h"
+#include "superdyna/core/time.h"
 
 namespace superdyna::mapping {
 
@@ -24,36 +22,24 @@ void LocalMapperOptions::validate() const {
   if (!(sigma0_px > 0.0)) throw OptionError("mapping.sigma0_px", "must be > 0");
   if (!(scale_factor > 1.0)) throw OptionError("mapping.scale_factor", "must be > 1");
   triangulation.validate();
+  keyframe_culling.validate();
+  inertial_init.validate();
+  if (!(refine_first_s >= 0.0)) throw OptionError("mapping.refine_first_s", "must be >= 0");
+  if (!(refine_second_s >= 0.0)) throw OptionError("mapping.refine_second_s", "must be >= 0");
+  if (full_ba_iterations < 1) throw OptionError("mapping.full_ba_iterations", "must be >= 1");
+  if (inertial_window_keyframes < 2) {
+    throw OptionError("mapping.inertial_window_keyframes", "must be >= 2");
+  }
+  if (inertial_fixed_covisible < 0) {
+    throw OptionError("mapping.inertial_fixed_covisible", "must be >= 0");
+  }
+  if (inertial_iterations < 1) throw OptionError("mapping.inertial_iterations", "must be >= 1");
 }
 
-namespace {
-
-/// One reprojection residual of the local BA, kept to classify it after solving.
-struct BaObservation {
-  map::MapPointId point = map::kNoMapPoint;
-  map::KeyFrameId keyframe = map::kNoKeyFrame;
-  std::shared_ptr<optim::ReprojectionFactor> factor;
-  bool left = true;  ///< Right-camera residuals are not removed individually.
-};
-
-/// Non-owning wrapper so the BaObservation list can evaluate the factors after solving.
-class BorrowedFactor final : public ceres::SizedCostFunction<2, 7, 3> {
- public:
-  explicit BorrowedFactor(const optim::ReprojectionFactor* factor) : factor_(factor) {}
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    return factor_->Evaluate(parameters, residuals, jacobians);
-  }
-
- private:
-  const optim::ReprojectionFactor* factor_;
-};
-
-}  // namespace
-
 LocalMapper::LocalMapper(const LocalMapperOptions& options,
-                         std::vector<optim::ReprojectionCamera> cameras)
-    : options_(options), cameras_(std::move(cameras)) {
+                         std::vector<optim::ReprojectionCamera> cameras,
+                         const std::optional<io::ImuCalibration>& imu)
+    : options_(options), cameras_(std::move(cameras)), imu_(imu) {
   options_.validate();
   if (cameras_.empty()) throw OptionError("cameras", "the local mapper needs the left camera");
   if (options_.triangulate) {
@@ -62,6 +48,7 @@ LocalMapper::LocalMapper(const LocalMapperOptions& options,
     triangulation.scale_factor = options_.scale_factor;
     triangulator_.emplace(triangulation, cameras_.front());
   }
+  if (imu_) preintegrations_.emplace(imu::ImuNoise::fromCalibration(*imu_));
 }
 
 void LocalMapper::addKeyFrame(map::KeyFrameId id, RightObservations right,
@@ -74,17 +61,30 @@ void LocalMapper::addKeyFrame(map::KeyFrameId id, RightObservations right,
 void LocalMapper::reset() {
   right_.clear();
   recent_points_.clear();
+  if (preintegrations_) preintegrations_->clear();
+  initializations_ = 0;
 }
 
-int LocalMapper::processKeyFrame(map::Map& map, map::KeyFrameId newest) {
+LocalMappingResult LocalMapper::processKeyFrame(map::Map& map, map::KeyFrameId newest) {
+  LocalMappingResult result;
+  const bool inertial = imu_ && options_.inertial;
   if (triangulator_) {
     for (const map::MapPointId point : triangulator_->createPoints(map, newest))
       recent_points_.emplace_back(point, newest);
   }
-  const std::vector<map::KeyFrameId> window = localWindow(map, newest);
-  const int used = window.size() >= 2 ? bundleAdjust(map, window) : 0;
+  const BundleAdjustmentResult ba =
+      inertialInitialized() ? inertialBundleAdjust(map, newest) : visualBundleAdjust(map, newest);
+  result.observations += ba.observations;
+  result.imu_edges += ba.imu_edges;
   cullRecentPoints(map, newest);
-  return used;
+  CullingImu culling_imu;
+  culling_imu.has_imu = inertial;
+  culling_imu.inertial_window = inertialInitialized() ? options_.inertial_window_keyframes + 1 : 0;
+  result.culled = cullRedundantKeyFrames(map, newest, options_.keyframe_culling, culling_imu);
+  for (const map::KeyFrameId id : result.culled)
+    right_.erase(id);
+  if (preintegrations_ && !result.culled.empty()) preintegrations_->prune(map);
+  return result;
 }
 
 std::vector<map::KeyFrameId> LocalMapper::localWindow(const map::Map& map,
@@ -96,84 +96,126 @@ std::vector<map::KeyFrameId> LocalMapper::localWindow(const map::Map& map,
   return window;
 }
 
-int LocalMapper::bundleAdjust(map::Map& map, const std::vector<map::KeyFrameId>& window) {
-  std::map<map::KeyFrameId, optim::PoseBlock> poses;
-  std::map<map::KeyFrameId, map::KeyFrame> keyframes;
-  std::map<map::MapPointId, int> counts;  // residuals per point
-  for (const map::KeyFrameId id : window) {
-    map.readKeyFrame(id, [&](const map::KeyFrame& kf) { keyframes.emplace(id, kf); });
-    poses[id] = optim::toPoseBlock(keyframes.at(id).T_w_b);
-  }
-  for (const auto& [id, kf] : keyframes) {
-    const auto& right = right_[id];
-    for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
-      if (kf.map_points[i] == map::kNoMapPoint) continue;
-      counts[kf.map_points[i]] += (i < right.size() && right[i]) ? 2 : 1;
-    }
-  }
-  std::map<map::MapPointId, Eigen::Vector3d> points;
-  for (const auto& [id, count] : counts) {
-    if (count < 2) continue;
-    if (const auto p = map.mapPointPosition(id)) points.emplace(id, *p);
-  }
+BundleAdjustmentSettings LocalMapper::settings(int iterations) const {
+  BundleAdjustmentSettings settings;
+  settings.iterations = iterations;
+  settings.chi2_outlier = options_.chi2_outlier;
+  settings.sigma0_px = options_.sigma0_px;
+  settings.scale_factor = options_.scale_factor;
+  return settings;
+}
 
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  std::vector<BaObservation> observations;
-  const auto add = [&](map::KeyFrameId kf_id, map::MapPointId point_id, int camera,
-                       const Eigen::Vector2d& normalized, int octave) {
-    const double sigma = optim::octaveSigmaPx(octave, options_.sigma0_px, options_.scale_factor);
-    auto factor = std::make_shared<optim::ReprojectionFactor>(
-        normalized, cameras_[static_cast<std::size_t>(camera)], sigma);
-    problem.AddResidualBlock(new BorrowedFactor(factor.get()),
-                             optim::newHuberLoss(options_.chi2_outlier), poses[kf_id].data(),
-                             points[point_id].data());
-    observations.push_back({point_id, kf_id, factor, camera == 0});
-  };
-  for (const auto& [id, kf] : keyframes) {
-    const auto& right = right_[id];
-    for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
-      const map::MapPointId point_id = kf.map_points[i];
-      if (point_id == map::kNoMapPoint || !points.contains(point_id)) continue;
-      add(id, point_id, 0, kf.keypoints[i].normalized, kf.keypoints[i].octave);
-      if (cameras_.size() > 1 && i < right.size() && right[i]) {
-        add(id, point_id, 1, *right[i], kf.keypoints[i].octave);
-      }
-    }
-  }
-  if (observations.empty()) return 0;
-  for (auto& [id, block] : poses) {
-    problem.SetManifold(block.data(), new optim::SE3Manifold());
-  }
-  problem.SetParameterBlockConstant(poses.begin()->second.data());
+BundleAdjustmentResult LocalMapper::visualBundleAdjust(map::Map& map, map::KeyFrameId newest) {
+  const std::vector<map::KeyFrameId> ids = localWindow(map, newest);
+  if (ids.size() < 2) return {};
+  BundleAdjustmentWindow window;
+  window.fixed = {ids.front()};  // the oldest: the gauge
+  window.optimised.assign(ids.begin() + 1, ids.end());
+  return bundleAdjust(map, window, cameras_, right_, settings(options_.iterations));
+}
 
-  ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::DENSE_SCHUR;
-  solver.max_num_iterations = options_.iterations;
-  solver.num_threads = 1;
-  solver.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver, &problem, &summary);
+namespace {
 
-  for (const auto& [id, block] : poses)
-    map.setKeyFramePose(id, optim::fromPoseBlock(block.data()));
-  std::set<map::MapPointId> touched;
-  for (const auto& [id, p_w] : points) {
-    map.setMapPointPosition(id, p_w);
-    touched.insert(id);
+/// The newest `count` keyframes of the temporal chain ending at `newest`, newest first.
+std::vector<map::KeyFrameId> temporalChain(const map::Map& map, map::KeyFrameId newest,
+                                           std::size_t count) {
+  std::vector<map::KeyFrameId> ids;
+  map::KeyFrameId id = newest;
+  while (id != map::kNoKeyFrame && ids.size() < count) {
+    ids.push_back(id);
+    map::KeyFrameId previous = map::kNoKeyFrame;
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) { previous = kf.previous; });
+    id = previous;
   }
-  for (const BaObservation& o : observations) {
-    if (!o.left) continue;
-    const auto r =
-        o.factor->residual(optim::fromPoseBlock(poses[o.keyframe].data()), points[o.point]);
-    if (!r || r->squaredNorm() > options_.chi2_outlier) map.eraseObservation(o.point, o.keyframe);
+  return ids;
+}
+
+}  // namespace
+
+BundleAdjustmentResult LocalMapper::inertialBundleAdjust(map::Map& map, map::KeyFrameId newest) {
+  const std::vector<map::KeyFrameId> chain =
+      temporalChain(map, newest, static_cast<std::size_t>(options_.inertial_window_keyframes) + 1);
+  if (chain.size() < 2) return {};
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  // The keyframe before the window is the fixed anchor (with its velocity and biases); when the
+  // chain is shorter, its oldest keyframe (the first of the map) is.
+  window.optimised.assign(chain.begin(), chain.end() - 1);
+  window.fixed = {chain.back()};
+  for (const map::KeyFrameId id : map.bestCovisibleKeyFrames(
+           newest, options_.inertial_fixed_covisible + options_.inertial_window_keyframes)) {
+    if (static_cast<int>(window.fixed.size()) > options_.inertial_fixed_covisible) break;
+    if (std::ranges::find(chain, id) == chain.end()) window.fixed.push_back(id);
   }
-  for (const map::MapPointId id : touched) {
-    if (!map.updateNormalAndDistances(id)) map.eraseMapPoint(id);
+  return bundleAdjust(map, window, cameras_, right_, settings(options_.inertial_iterations),
+                      BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
+}
+
+BundleAdjustmentResult LocalMapper::fullInertialBundleAdjust(map::Map& map, double bias_sigma_gyro,
+                                                             double bias_sigma_acc) {
+  const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
+  if (ids.size() < 2) return {};
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  window.fixed = {ids.front()};
+  window.optimised.assign(ids.begin() + 1, ids.end());
+  window.bias_prior_sigma_gyro = bias_sigma_gyro;
+  window.bias_prior_sigma_acc = bias_sigma_acc;
+  return bundleAdjust(map, window, cameras_, right_, settings(options_.full_ba_iterations),
+                      BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
+}
+
+double LocalMapper::mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const {
+  const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
+  TimeNs t_first = 0;
+  TimeNs t_newest = 0;
+  if (ids.empty()) return 0.0;
+  map.readKeyFrame(ids.front(), [&](const map::KeyFrame& kf) { t_first = kf.t_ns; });
+  map.readKeyFrame(newest, [&](const map::KeyFrame& kf) { t_newest = kf.t_ns; });
+  return nsToSeconds(t_newest - t_first);
+}
+
+bool LocalMapper::inertialStageDue(int stage, double map_age_s, int keyframes) const {
+  if (!imu_ || !options_.inertial) return false;
+  switch (stage) {
+    case 0:
+      return keyframes >= options_.inertial_init.min_keyframes &&
+             map_age_s >= options_.inertial_init.min_duration_s;
+    case 1:
+      return options_.refine_first_s > 0.0 && map_age_s >= options_.refine_first_s;
+    case 2:
+      return options_.refine_second_s > 0.0 && map_age_s >= options_.refine_second_s;
+    default:
+      return false;
   }
-  return static_cast<int>(observations.size());
+}
+
+LocalMappingResult LocalMapper::initializeInertialIfDue(map::Map& map, map::KeyFrameId newest) {
+  LocalMappingResult result;
+  if (!imu_ || !options_.inertial) return result;
+  if (!inertialStageDue(initializations_, mapAgeSeconds(map, newest),
+                        static_cast<int>(map.numKeyFrames()))) {
+    return result;
+  }
+  InertialMapInitOptions init = options_.inertial_init;
+  if (initializations_ >= 1) {
+    // ORB-SLAM3's refinements: biases mostly free (gyroscope), the accelerometer's prior relaxed
+    // at the first refinement and free at the second.
+    init.gyro_bias_prior_sigma = 1.0;
+    init.accel_bias_prior_sigma = initializations_ == 1 ? 0.1 : 1.0;
+  }
+  const InertialMapInitResult applied =
+      initializeInertialMap(map, imu_->T_b_i, preintegrations_->noise(), init);
+  if (!applied.applied) return result;
+  preintegrations_->clear();  // the biases changed everywhere
+  ++initializations_;
+  result.inertial_initialization = true;
+  result.world_change = applied.T_new_old;
+  const BundleAdjustmentResult ba =
+      fullInertialBundleAdjust(map, init.gyro_bias_prior_sigma, applied.accel_bias_prior_sigma);
+  result.observations += ba.observations;
+  result.imu_edges += ba.imu_edges;
+  return result;
 }
 
 void LocalMapper::cullRecentPoints(map::Map& map, map::KeyFrameId newest) {

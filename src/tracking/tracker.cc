@@ -56,6 +56,10 @@ void TrackerOptions::validate() const {
     throw OptionError("tracker.inertial_final_refine_after_s", "must be > inertial_refine_after_s");
   }
   inertial_init.validate();
+  imu_prior.validate();
+  if (!(imu_min_keyframe_interval_s >= 0.0)) {
+    throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
+  }
 }
 
 const char* toString(TrackingState state) {
@@ -96,7 +100,7 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
       cameras_(rigCameras(cam0, cam1)),
       imu_(options.use_imu ? imu : std::nullopt),
       baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
-      mapper_(mapping, cameras_) {
+      mapper_(mapping, cameras_, imu_) {
   options_.validate();
   map_ = newMap();
   if (isMonocular()) {
@@ -109,6 +113,10 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
 
 Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
   if (!has_last_) return {};
+  if (std::optional<InertialPrediction> inertial = predictInertial(frame)) {
+    const SE3d T_w_b = inertial->T_w_b;
+    return {T_w_b, true, std::move(inertial)};
+  }
   SE3d motion = has_motion_ ? motion_ : SE3d();
   const auto& samples = frame.imu;
   if (imu_ && samples.size() >= 2 && samples.front().t_ns <= t_last_ns_ &&
@@ -116,14 +124,14 @@ Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
     imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
     preintegration.integrateBetween(samples, t_last_ns_, frame.t_ns);
     if (options_.imu_translation_prediction && has_velocity_ && inertialReady()) {
-      return {predictWithImu(preintegration), true};
+      return {predictWithImu(preintegration), true, std::nullopt};
     }
     const Eigen::Matrix3d R_b_i = imu_->T_b_i.rotation();
     const Eigen::Matrix3d dR = R_b_i * preintegration.deltaRotation() * R_b_i.transpose();
     motion = SE3d(Eigen::Quaterniond(dR).normalized(), motion.t);
-    return {T_w_b_last_ * motion, true};
+    return {T_w_b_last_ * motion, true, std::nullopt};
   }
-  return {T_w_b_last_ * motion, false};
+  return {T_w_b_last_ * motion, false, std::nullopt};
 }
 
 SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
@@ -136,7 +144,18 @@ SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
   return SE3d(Eigen::Quaterniond(next.R_w_b).normalized(), next.p_w) * imu_->T_b_i.inverse();
 }
 
+std::optional<InertialPrediction> Tracker::predictInertial(const Frame& frame) const {
+  if (!imu_ || !has_map_ || !mapper_.inertialInitialized()) return std::nullopt;
+  std::optional<InertialPrediction> prediction;
+  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
+    prediction = predictFromKeyFrame(kf, imu_since_keyframe_.samples(), frame.t_ns, imu_->T_b_i,
+                                     imu::ImuNoise::fromCalibration(*imu_), options_.imu_prior);
+  });
+  return prediction;
+}
+
 std::optional<optim::PosePrior> Tracker::rotationPrior(const Prediction& prediction) const {
+  if (prediction.inertial) return prediction.inertial->prior;
   if (!prediction.from_imu || !(options_.imu_rotation_prior_sigma_deg > 0.0)) return std::nullopt;
   const double sigma_rad = options_.imu_rotation_prior_sigma_deg * M_PI / 180.0;
   optim::PosePrior prior;
@@ -168,6 +187,7 @@ TrackingResult Tracker::track(const Frame& frame) {
   result.times.extract_ms = frame.extract_ms;
   result.times.stereo_ms = frame.stereo_ms;
   const auto start = Clock::now();
+  if (imu_) imu_since_keyframe_.append(frame.imu);
   const Prediction prediction = predictPose(frame);
   result.T_w_b = prediction.T_w_b;
   recordImu(frame);
@@ -192,7 +212,9 @@ TrackingResult Tracker::track(const Frame& frame) {
     if (mono_initializer_) mono_initializer_->reset();
   } else {
     result.state = TrackingState::kTracking;
-    if (needKeyFrame(frame, result.inliers)) addKeyFrameAndMap(frame, tracked, result);
+    if (needKeyFrame(frame, result.inliers)) {
+      addKeyFrameAndMap(frame, tracked, prediction, result);
+    }
   }
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
@@ -232,9 +254,11 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
 }
 
 void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
-                                TrackingResult& result) {
+                                const Prediction& prediction, TrackingResult& result) {
   const auto start = Clock::now();
-  const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked);
+  std::optional<Eigen::Vector3d> v_w;
+  if (prediction.inertial) v_w = prediction.inertial->v_w;
+  const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked, v_w);
   result.keyframe = true;
   if (mapping_sink_) {
     mapping_sink_->submit([this, map = map_.get(), id] { mapper_.processKeyFrame(*map, id); });
@@ -242,7 +266,9 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
     mapper_.processKeyFrame(*map_, id);
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
   }
+  initializeInertialIfDue(result);
   alignInertialIfDue(result);
+  updateBiasFromMap();
   result.times.local_ba_ms = millisecondsSince(start);
 }
 
@@ -256,6 +282,32 @@ void Tracker::runMapping(std::function<void()> job) {
 
 void Tracker::waitForMapping() {
   if (mapping_sink_) mapping_sink_->waitIdle();
+}
+
+void Tracker::initializeInertialIfDue(TrackingResult& result) {
+  if (!imu_ || isMonocular()) return;  // mono-inertial: alignInertialIfDue
+  const std::vector<map::KeyFrameId> ids = map_->keyFrameIds();
+  TimeNs t_first = 0;
+  map_->readKeyFrame(ids.front(), [&](const map::KeyFrame& kf) { t_first = kf.t_ns; });
+  const double age_s = nsToSeconds(t_reference_ns_ - t_first);
+  if (!mapper_.inertialStageDue(inertial_inits_, age_s, static_cast<int>(ids.size()))) return;
+  waitForMapping();  // the estimation moves the whole map: no job may run meanwhile
+  const mapping::LocalMappingResult mapping = mapper_.initializeInertialIfDue(*map_, reference_);
+  if (!mapping.inertial_initialization) return;  // retried at the next keyframe
+  ++inertial_inits_;
+  if (mapping.world_change) {
+    result.world_change = mapping.world_change;
+    // The map moved into the gravity-aligned frame: so does the state kept here.
+    const Sim3d& T = *mapping.world_change;
+    T_w_b_last_ = T * T_w_b_last_;
+    velocity_w_ = T.R * velocity_w_;
+  }
+  result.T_w_b = map_->keyFramePose(reference_).value_or(result.T_w_b);
+}
+
+void Tracker::updateBiasFromMap() {
+  if (inertial_inits_ == 0) return;
+  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) { bias_ = {kf.bg, kf.ba}; });
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(
@@ -310,6 +362,8 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   map_ = newMap();
   runMapping([this] { mapper_.reset(); });
   inertial_stage_ = 0;
+  inertial_inits_ = 0;
+  bias_ = {};
   insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   has_map_ = true;
 }
@@ -400,6 +454,10 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
 
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
+  if (imu_ && !inertialInitialized() &&
+      frame.t_ns - t_reference_ns_ < secondsToNs(options_.imu_min_keyframe_interval_s)) {
+    return false;
+  }
   if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
@@ -421,10 +479,20 @@ int Tracker::referenceTrackedPoints() const {
 }
 
 map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
-                                        const std::vector<map::MapPointId>& tracked) {
+                                        const std::vector<map::MapPointId>& tracked,
+                                        const std::optional<Eigen::Vector3d>& v_w) {
   map::KeyFrame kf;
   kf.t_ns = frame.t_ns;
   kf.T_w_b = T_w_b;
+  if (imu_) {
+    // The IMU state starts from the prediction (or the mean velocity before the initialisation)
+    // and the current bias; the samples since the previous keyframe define its preintegration.
+    kf.v_w = v_w.value_or(velocity_w_);
+    kf.bg = bias_.bg;
+    kf.ba = bias_.ba;
+    std::vector<io::ImuSample> samples = imu_since_keyframe_.startInterval(frame.t_ns);
+    if (map_->numKeyFrames() > 0) kf.imu_from_previous = std::move(samples);
+  }
   kf.descriptors = frame.features.descriptors.clone();
   kf.keypoints.resize(frame.size());
   for (std::size_t i = 0; i < frame.size(); ++i) {

@@ -310,3 +310,54 @@ TEST(MapTest, ConcurrentObservationChangesStayConsistent) {
 
 }  // namespace
 }  // namespace superdyna::map
+
+namespace superdyna::map {
+namespace {
+
+TEST_F(ThreeKeyFrameMap, KeyFramesFormATemporalChainThatSurvivesErasing) {
+  EXPECT_EQ(map.keyFrame(kf[0])->previous, kNoKeyFrame);
+  EXPECT_EQ(map.keyFrame(kf[1])->previous, kf[0]);
+  EXPECT_EQ(map.keyFrame(kf[2])->previous, kf[1]);
+  EXPECT_EQ(map.newestKeyFrame(), kf[2]);
+  EXPECT_EQ(map.nextKeyFrame(kf[0]), kf[1]);
+  ASSERT_TRUE(map.eraseKeyFrame(kf[1]));
+  EXPECT_EQ(map.keyFrame(kf[2])->previous, kf[0]);
+  EXPECT_EQ(map.nextKeyFrame(kf[0]), kf[2]);
+  ASSERT_TRUE(map.eraseKeyFrame(kf[2]));
+  EXPECT_EQ(map.newestKeyFrame(), kf[0]);
+  EXPECT_EQ(map.nextKeyFrame(kf[0]), kNoKeyFrame);
+}
+
+TEST(MapTest, MergedImuSamplesDropTheSharedBracketingSample) {
+  const auto at = [](TimeNs t) {
+    io::ImuSample s;
+    s.t_ns = t;
+    s.gyro.setZero();
+    s.accel.setZero();
+    return s;
+  };
+  const std::vector<io::ImuSample> merged =
+      mergeImuSamples({at(0), at(5), at(10)}, {at(5), at(10), at(15)});
+  ASSERT_EQ(merged.size(), 4u);
+  EXPECT_EQ(merged.back().t_ns, 15);
+}
+
+TEST_F(ThreeKeyFrameMap, TransformWorldMovesPosesPointsAndVelocities) {
+  ASSERT_TRUE(map.setKeyFrameInertialState(kf[1], Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Zero(),
+                                           Eigen::Vector3d::Zero()));
+  ASSERT_TRUE(map.updateNormalAndDistances(p[3]));
+  const double max_before = map.mapPoint(p[3])->max_distance_m;
+  Sim3d T;
+  T.s = 2.0;
+  T.R = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.t = Eigen::Vector3d(0, 0, 1);
+  map.transformWorld(T);
+  EXPECT_TRUE(map.mapPointPosition(p[3])->isApprox(Eigen::Vector3d(0, 6, 11)));
+  EXPECT_TRUE(map.keyFrame(kf[1])->v_w.isApprox(Eigen::Vector3d(0, 1, 0)));
+  EXPECT_TRUE(map.keyFramePose(kf[1])->t.isApprox(Eigen::Vector3d(0, 0, 1)));
+  EXPECT_DOUBLE_EQ(map.mapPoint(p[3])->max_distance_m, 2.0 * max_before);
+  EXPECT_EQ(map.consistencyError(), "");
+}
+
+}  // namespace
+}  // namespace superdyna::map

@@ -8,6 +8,7 @@
 
 #include "superdyna/core/geometry.h"
 #include "superdyna/core/time.h"
+#include "superdyna/io/euroc_dataset.h"
 #include "superdyna/map/map_point.h"
 
 namespace superdyna::map {
@@ -32,12 +33,23 @@ struct KeyFrameKeypoint {
 };
 
 struct KeyFrame {
-  KeyFrameId id = kNoKeyFrame;                    ///< Assigned by Map::addKeyFrame.
-  TimeNs t_ns = 0;                                ///< Image time [ns].
-  SE3d T_w_b;                                     ///< Body (IMU) pose in the world frame.
-  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Body velocity in the world frame [m/s].
-  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias [rad/s].
-  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias [m/s^2].
+  KeyFrameId id = kNoKeyFrame;  ///< Assigned by Map::addKeyFrame.
+  TimeNs t_ns = 0;              ///< Image time [ns].
+  SE3d T_w_b;                   ///< Body (IMU) pose in the world frame.
+  /// Velocity of the IMU origin in the world frame [m/s] (the body's when T_b_i is identity).
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero();  ///< Gyroscope bias [rad/s].
+  Eigen::Vector3d ba = Eigen::Vector3d::Zero();  ///< Accelerometer bias [m/s^2].
+
+  /// Temporal predecessor: the keyframe before this one in time, kNoKeyFrame for the first.
+  /// Set by Map::addKeyFrame (the newest keyframe of the map) and kept by Map::eraseKeyFrame.
+  KeyFrameId previous = kNoKeyFrame;
+  /// IMU samples (raw, IMU frame, strictly increasing in time) bracketing [previous.t_ns, t_ns]:
+  /// one at or before the predecessor's time, one at or after t_ns. They define the preintegration
+  /// from the predecessor (mapping/keyframe_preintegration.h). Empty without IMU. When the
+  /// predecessor is erased, Map::eraseKeyFrame prepends its samples, so this always spans the
+  /// gap to the current predecessor.
+  std::vector<io::ImuSample> imu_from_previous;
 
   std::vector<KeyFrameKeypoint> keypoints;
   cv::Mat descriptors;  ///< Row i describes keypoints[i] (CV_8UC1 or CV_32FC1); may be empty.

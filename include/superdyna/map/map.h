@@ -53,6 +53,11 @@ struct CovisibleKeyFrame {
   bool operator==(const CovisibleKeyFrame&) const = default;
 };
 
+/// The samples of `earlier` followed by those of `later` newer than the last of `earlier`: the
+/// IMU run across two consecutive gaps (both bracket the time they share).
+std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
+                                           const std::vector<io::ImuSample>& later);
+
 class Map {
  public:
   /// Validates the options (OptionError).
@@ -64,7 +69,8 @@ class Map {
 
   // ---- Structure -------------------------------------------------------------------------------
 
-  /// Adds a keyframe and returns its new id (keyframe.id is overwritten). map_points may be empty
+  /// Adds a keyframe and returns its new id (keyframe.id is overwritten; keyframe.previous becomes
+  /// the newest keyframe of the map, kNoKeyFrame when empty). map_points may be empty
   /// (no associations) or hold one entry per keypoint: each id of a map point in the map (and not
   /// bad) becomes an observation; other ids are cleared to kNoMapPoint. Throws
   /// std::invalid_argument when descriptors has rows but not one per keypoint, map_points has the
@@ -87,7 +93,9 @@ class Map {
 
   /// Erases a keyframe with all its observations and covisibility edges. Returns the ids of the
   /// points that were left without any observation (the caller decides whether to cull them), or
-  /// nullopt when the keyframe is unknown.
+  /// nullopt when the keyframe is unknown. The temporal chain stays connected: the successor takes
+  /// the erased keyframe's predecessor and the concatenation of both IMU sample runs
+  /// (mergeImuSamples); without a predecessor its samples are cleared.
   std::optional<std::vector<MapPointId>> eraseKeyFrame(KeyFrameId id);
 
   /// Erases a map point with all its observations; false when unknown.
@@ -112,6 +120,11 @@ class Map {
   bool setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
                                 const Eigen::Vector3d& bg, const Eigen::Vector3d& ba);
   bool setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w);
+  /// Moves the whole map by the similarity p -> s R p + t (e.g. the gravity alignment and scale of
+  /// the inertial initialisation): keyframe poses (rotation R R_w_b, position s R p + t), map
+  /// points, their normals and distance ranges (times s); velocities are rotated (v -> R v, not
+  /// scaled: after an inertial initialisation they are metric already and set separately).
+  void transformWorld(const Sim3d& T_new_old);
   /// Stores a copy (clone) of one descriptor row.
   bool setMapPointDescriptor(MapPointId id, const cv::Mat& descriptor);
   bool increaseVisible(MapPointId id, int count = 1);
@@ -133,6 +146,10 @@ class Map {
   bool hasMapPoint(MapPointId id) const;
   /// Ids in increasing order.
   std::vector<KeyFrameId> keyFrameIds() const;
+  /// The keyframe with the largest id (the newest), kNoKeyFrame when empty.
+  KeyFrameId newestKeyFrame() const;
+  /// The keyframe whose predecessor is `id` (kNoKeyFrame when none or unknown).
+  KeyFrameId nextKeyFrame(KeyFrameId id) const;
   /// Ids of the points that are not bad, in increasing order.
   std::vector<MapPointId> mapPointIds() const;
 
@@ -188,6 +205,8 @@ class Map {
   /// Removes the observation of the point in the keyframe (which must exist).
   void detachObservation(MapPoint& point, KeyFrame& keyframe);
   void detachAllObservations(MapPoint& point);
+  /// Gives the successor of `erased` (if any) its predecessor and merged IMU samples.
+  void relinkSuccessor(const KeyFrame& erased);
   void addCovisibility(KeyFrameId a, KeyFrameId b, int delta);
   std::unordered_map<KeyFrameId, CovisibilityRow> rebuildCovisibility() const;
   std::string observationError() const;
@@ -200,6 +219,7 @@ class Map {
   /// covisibility_[a][b] = points shared by a and b (> 0); symmetric; one row per keyframe.
   std::unordered_map<KeyFrameId, CovisibilityRow> covisibility_;
   KeyFrameId next_keyframe_id_ = 0;
+  KeyFrameId newest_keyframe_ = kNoKeyFrame;
   MapPointId next_point_id_ = 0;
 };
 

@@ -1,7 +1,20 @@
 #pragma once
-// Local mapping, run sequentially after each new keyframe: local bundle adjustment with Ceres over
-// the newest keyframe and its best covisible keyframes (the oldest of the window fixed), removal
-// of outlier observations, and culling of recent map points that too few keyframes observe.
+// Local mapping, run sequentially after each new keyframe.
+//
+// Visual (stereo, or stereo-inertial before the inertial initialisation): local bundle
+// adjustment with Ceres over the newest keyframe and its best covisible keyframes (the oldest of
+// the window fixed).
+// Stereo-inertial: once the map holds enough keyframes over a long enough time, the inertial
+// initialisation (inertial_map_initializer.h) aligns the map with gravity and estimates velocities
+// and biases, followed by a full visual-inertial BA; it is refined (initialisation with relaxed
+// bias priors + full BA) when the map is refine_first_s and refine_second_s old. From then on the
+// local BA is visual-inertial (ORB-SLAM3): the newest inertial_window_keyframes keyframes of the
+// temporal chain are optimised (pose, velocity, biases) with preintegration and bias random walk
+// factors between consecutive ones; the keyframe before them is fixed with its velocity and
+// biases; up to inertial_fixed_covisible best covisible keyframes outside the window add their
+// observations with fixed poses.
+// Then: removal of outlier observations, culling of recent map points that too few keyframes
+// observe, and culling of redundant keyframes (keyframe_culling.h).
 
 #include <Eigen/Core>
 #include <map>
@@ -11,7 +24,12 @@
 
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
+#include "superdyna/io/calibration.h"
 #include "superdyna/map/map.h"
+#include "superdyna/mapping/bundle_adjustment.h"
+#include "superdyna/mapping/inertial_map_initializer.h"
+#include "superdyna/mapping/keyframe_culling.h"
+#include "superdyna/mapping/keyframe_preintegration.h"
 #include "superdyna/mapping/point_triangulator.h"
 #include "superdyna/optim/reprojection_factor.h"
 
@@ -30,39 +48,79 @@ struct LocalMapperOptions {
   /// source of new points in monocular maps). Its sigma0_px and scale_factor are the ones above.
   bool triangulate = false;
   PointTriangulatorOptions triangulation;
+  KeyFrameCullingOptions keyframe_culling;  ///< Redundant keyframe removal.
+
+  // ---- With IMU ----
+  bool inertial = true;                  ///< Run the inertial initialisation and VI BA (with IMU).
+  InertialMapInitOptions inertial_init;  ///< First initialisation (scale fixed for stereo).
+  double refine_first_s = 5.0;           ///< Map age of the first refinement [s], > 0 (0 = none).
+  double refine_second_s = 15.0;         ///< ... of the second, > refine_first_s (0 = none).
+  int full_ba_iterations = 20;  ///< Iterations of the full VI BA after an initialisation, >= 1.
+  int inertial_window_keyframes = 10;  ///< Temporal keyframes optimised by the VI local BA, >= 2.
+  int inertial_fixed_covisible = 5;    ///< Fixed covisible keyframes of the VI local BA, >= 0.
+  int inertial_iterations = 5;         ///< Iterations of the VI local BA, >= 1.
   void validate() const;
 };
 
-/// Right-camera observations of one keyframe's keypoints (unrectified stereo), by keypoint index.
-using RightObservations = std::vector<std::optional<Eigen::Vector2d>>;
+/// What one processKeyFrame() call did.
+struct LocalMappingResult {
+  int observations = 0;  ///< Reprojection residuals of the BA.
+  int imu_edges = 0;     ///< Preintegration factors of the BA.
+  /// Set when the map was moved (gravity alignment): apply it to poses held outside the map.
+  std::optional<Sim3d> world_change;
+  bool inertial_initialization = false;  ///< An (re-)initialisation ran and was applied.
+  std::vector<map::KeyFrameId> culled;   ///< Keyframes removed.
+};
 
 class LocalMapper {
  public:
-  /// cameras[0] = left, cameras[1] = right (optional) of the rig.
-  LocalMapper(const LocalMapperOptions& options, std::vector<optim::ReprojectionCamera> cameras);
+  /// cameras[0] = left, cameras[1] = right (optional) of the rig, in the body frame. `imu`: the
+  /// IMU of a stereo-inertial rig (enables the inertial stages when options.inertial).
+  LocalMapper(const LocalMapperOptions& options, std::vector<optim::ReprojectionCamera> cameras,
+              const std::optional<io::ImuCalibration>& imu = std::nullopt);
 
   /// Registers a keyframe's right observations and points it created (for culling).
   void addKeyFrame(map::KeyFrameId id, RightObservations right,
                    const std::vector<map::MapPointId>& new_points);
 
-  /// Local BA around `newest`, outlier removal and point culling. Returns the BA observations.
-  int processKeyFrame(map::Map& map, map::KeyFrameId newest);
+  /// Local BA around `newest` (inertial stages with IMU), outlier removal, point and keyframe
+  /// culling.
+  LocalMappingResult processKeyFrame(map::Map& map, map::KeyFrameId newest);
 
   /// Forget all state (after a map reset).
   void reset();
 
+  /// Whether inertial stage `stage` (0 = initialisation, 1 and 2 = refinements) is due for a map
+  /// of this age and keyframe count. Reads only options: safe from any thread.
+  bool inertialStageDue(int stage, double map_age_s, int keyframes) const;
+
+  /// Runs the inertial (re-)initialisation due at this map age, if any, with the full VI BA that
+  /// follows it. It moves the whole map: call it only while no other thread uses the map (the
+  /// tracker waits for the mapping thread to be idle).
+  LocalMappingResult initializeInertialIfDue(map::Map& map, map::KeyFrameId newest);
+
+  /// The inertial initialisation has been applied to the current map.
+  bool inertialInitialized() const { return initializations_ > 0; }
   const LocalMapperOptions& options() const { return options_; }
 
  private:
   std::vector<map::KeyFrameId> localWindow(const map::Map& map, map::KeyFrameId newest) const;
-  int bundleAdjust(map::Map& map, const std::vector<map::KeyFrameId>& window);
+  BundleAdjustmentSettings settings(int iterations) const;
+  BundleAdjustmentResult visualBundleAdjust(map::Map& map, map::KeyFrameId newest);
+  BundleAdjustmentResult inertialBundleAdjust(map::Map& map, map::KeyFrameId newest);
+  BundleAdjustmentResult fullInertialBundleAdjust(map::Map& map, double bias_sigma_gyro,
+                                                  double bias_sigma_acc);
   void cullRecentPoints(map::Map& map, map::KeyFrameId newest);
+  double mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const;
 
   LocalMapperOptions options_;
   std::vector<optim::ReprojectionCamera> cameras_;
+  std::optional<io::ImuCalibration> imu_;
+  std::optional<KeyFramePreintegrations> preintegrations_;
   std::map<map::KeyFrameId, RightObservations> right_;
   std::vector<std::pair<map::MapPointId, map::KeyFrameId>> recent_points_;
   std::optional<PointTriangulator> triangulator_;
+  int initializations_ = 0;  ///< Inertial (re-)initialisations applied to the current map.
 };
 
 }  // namespace superdyna::mapping

@@ -118,6 +118,8 @@ class System {
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
+  /// The inertial initialisation has been applied to the current map.
+  bool inertialInitialized() const { return tracker_.inertialInitialized(); }
 
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);

@@ -2,7 +2,9 @@
 // Stereo (optionally IMU-aided) tracking against a local map, sequential and deterministic.
 //
 // Per frame (built by the FrontEnd: features, stereo depth): pose prediction (constant
-// velocity; with IMU samples the rotation comes from gyroscope preintegration), projection of the
+// velocity; with IMU samples the rotation comes from gyroscope preintegration; once local mapping
+// has initialised the IMU, preintegration from the newest keyframe's optimised state, used as a
+// pose prior too - see inertial_prediction.h), projection of the
 // local map (points of the reference keyframe and its best covisible keyframes), matching by
 // projection, motion-only BA, keyframe decision, new stereo map points and local BA. Fewer inliers
 // than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
@@ -30,6 +32,7 @@
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/optim/pose_optimizer.h"
 #include "superdyna/tracking/frame.h"
+#include "superdyna/tracking/inertial_prediction.h"
 #include "superdyna/tracking/mono_initializer.h"
 
 namespace superdyna::tracking {
@@ -50,7 +53,8 @@ struct TrackerOptions {
   bool stereo_pose_observations = true;    ///< Motion-only BA also uses right-camera points.
   bool imu_translation_prediction = true;  ///< IMU also predicts position (else const. vel.).
   bool use_imu = true;                     ///< Use IMU samples for rotation prediction and gravity.
-  /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior.
+  /// Weak prior on the IMU-predicted rotation in motion-only BA [deg]; 0 = no prior. Used until
+  /// the inertial initialisation; after it the full pose prior of `imu_prior` applies.
   double imu_rotation_prior_sigma_deg = 0.0;
   MonoInitializerOptions mono_init;  ///< Two-view initialisation of monocular maps.
   /// Mono-inertial: keyframe time span [s] of the map at the inertial initialisation and at its two
@@ -59,6 +63,12 @@ struct TrackerOptions {
   double inertial_refine_after_s = 5.0;
   double inertial_final_refine_after_s = 15.0;
   imu::InertialInitOptions inertial_init;  ///< Mono-inertial scale / gravity / bias estimation.
+  /// With IMU, before the inertial initialisation: no new keyframe sooner than this after the
+  /// previous one [s], >= 0 (ORB-SLAM3: 0.25 s). Very short keyframe gaps have near-zero
+  /// preintegration covariance, so the visual pose noise would dominate the initialisation.
+  double imu_min_keyframe_interval_s = 0.25;
+  /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
+  InertialPriorOptions imu_prior;
   void validate() const;
 };
 
@@ -79,9 +89,9 @@ struct TrackingResult {
   int matches = 0;
   int inliers = 0;
   bool keyframe = false;
-  /// Mono-inertial: the similarity applied to the world of the current map at this frame (scale
-  /// and gravity alignment); poses recorded earlier on this map change with it (see
-  /// mapping::transformBodyPose).
+  /// Set when the world frame of the current map changed at this frame (inertial initialisation:
+  /// gravity alignment; mono-inertial: scale too): poses reported earlier on this map map into the
+  /// new frame by mapping::transformBodyPose.
   std::optional<Sim3d> world_change;
   StageTimes times;
 };
@@ -123,6 +133,8 @@ class Tracker {
   /// The current map; only valid once hasMap() (a first frame with enough stereo points).
   const map::Map& map() const { return *map_; }
   bool hasMap() const { return map_ != nullptr; }
+  /// The inertial initialisation has been applied to the current map.
+  bool inertialInitialized() const { return inertial_inits_ > 0 || inertial_stage_ > 0; }
   int resets() const { return resets_; }
   bool isMonocular() const { return cameras_.size() == 1; }
   /// The left camera's pose in the body frame.
@@ -142,7 +154,14 @@ class Tracker {
   struct Prediction {
     SE3d T_w_b;
     bool from_imu = false;  ///< Rotation from gyroscope preintegration.
+    /// After the inertial initialisation: predicted from the newest keyframe, with a pose prior.
+    std::optional<InertialPrediction> inertial;
   };
+  std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
+  /// Stereo-inertial: runs the inertial (re-)initialisation of the map when it is due.
+  void initializeInertialIfDue(TrackingResult& result);
+  /// After the inertial initialisation: the biases of the newest keyframe (as local BA left them).
+  void updateBiasFromMap();
   Prediction predictPose(const Frame& frame) const;
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
@@ -162,7 +181,7 @@ class Tracker {
   std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
                                              TrackingResult& result);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
-                         TrackingResult& result);
+                         const Prediction& prediction, TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;
   std::vector<features::Match> matchLocalPoints(const Frame& frame,
                                                 const std::vector<LocalPoint>& points,
@@ -173,7 +192,8 @@ class Tracker {
   bool needKeyFrame(const Frame& frame, int inliers) const;
   int referenceTrackedPoints() const;
   map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
-                                 const std::vector<map::MapPointId>& tracked);
+                                 const std::vector<map::MapPointId>& tracked,
+                                 const std::optional<Eigen::Vector3d>& v_w = std::nullopt);
   std::vector<map::MapPointId> createStereoPoints(const Frame& frame, const SE3d& T_w_b,
                                                   map::KeyFrameId keyframe,
                                                   const std::vector<map::MapPointId>& tracked);
@@ -192,6 +212,7 @@ class Tracker {
   std::vector<optim::ReprojectionCamera> cameras_;
   std::optional<io::ImuCalibration> imu_;
   imu::Bias bias_;
+  ImuSampleBuffer imu_since_keyframe_;  ///< Samples since the newest keyframe.
   double baseline_m_ = 0.0;
   std::unique_ptr<map::Map> map_;
   mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).
@@ -212,6 +233,7 @@ class Tracker {
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
   std::vector<io::ImuSample> imu_history_;           ///< Mono-inertial: samples of the current map.
   int inertial_stage_ = 0;  ///< Mono-inertial: inertial estimations done on the current map.
+  int inertial_inits_ = 0;  ///< Stereo-inertial: inertial (re-)initialisations of the current map.
 };
 
 }  // namespace superdyna::tracking

@@ -1,0 +1,69 @@
+#pragma once
+// Bundle adjustment of a set of keyframes and the map points they observe (Ceres), visual or
+// visual-inertial, shared by the local BA and the full BA after the inertial initialisation.
+//
+// Visual: reprojection factors (Huber, left camera and, unrectified, right camera) on the poses of
+// the optimised keyframes and the points; the fixed keyframes only add their observations.
+// Visual-inertial (ORB-SLAM3 local inertial BA): every optimised keyframe also has velocity and
+// bias blocks; an ImuPreintegrationFactor and a BiasRandomWalkFactor join it to its temporal
+// predecessor when that is optimised or fixed (a fixed predecessor anchors the window with its
+// pose, velocity and biases held). The pose blocks then hold the IMU poses T_w_i = T_w_b T_b_i and
+// the cameras are re-expressed in the IMU frame, so that body and IMU may differ.
+// After solving: poses (and inertial states) and points are written back, left observations
+// failing the chi^2 test are removed and the points' normals and distances are updated.
+
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "superdyna/imu/preintegration.h"
+#include "superdyna/map/map.h"
+#include "superdyna/mapping/keyframe_preintegration.h"
+#include "superdyna/optim/reprojection_factor.h"
+
+namespace superdyna::mapping {
+
+/// Right-camera observations of one keyframe's keypoints (unrectified stereo), by keypoint index.
+using RightObservations = std::vector<std::optional<Eigen::Vector2d>>;
+
+struct BundleAdjustmentSettings {
+  int iterations = 10;                       ///< Levenberg-Marquardt iterations.
+  double chi2_outlier = optim::kChi2Mono95;  ///< Huber threshold and outlier test.
+  double sigma0_px = 1.0;                    ///< Keypoint std at octave 0 [px].
+  double scale_factor = 1.2;                 ///< Pyramid scale between octaves.
+};
+
+/// What is optimised.
+struct BundleAdjustmentWindow {
+  std::vector<map::KeyFrameId> optimised;  ///< Pose (and inertial state) free.
+  std::vector<map::KeyFrameId> fixed;      ///< Held; observations and IMU anchor only.
+  /// Visual-inertial: needs `imu` in the context.
+  bool inertial = false;
+  /// Visual-inertial: Gaussian prior (around the current values) on the biases of the oldest
+  /// optimised keyframe, [rad/s] and [m/s^2]; 0 = none.
+  double bias_prior_sigma_gyro = 0.0;
+  double bias_prior_sigma_acc = 0.0;
+};
+
+/// IMU side of the problem.
+struct BundleAdjustmentImu {
+  SE3d T_b_i;                                          ///< IMU pose in the body frame.
+  KeyFramePreintegrations* preintegrations = nullptr;  ///< Cache (not null).
+};
+
+struct BundleAdjustmentResult {
+  int observations = 0;  ///< Reprojection residuals.
+  int imu_edges = 0;     ///< Preintegration factors.
+  int outliers = 0;      ///< Observations removed after the solve.
+};
+
+/// Runs the BA on the map. `cameras`: [0] left, [1] right (optional), in the body frame;
+/// `right`: right observations by keyframe (missing = none). Keyframes that are not in the map
+/// are skipped. Deterministic (single-threaded, ordered containers).
+BundleAdjustmentResult bundleAdjust(map::Map& map, const BundleAdjustmentWindow& window,
+                                    const std::vector<optim::ReprojectionCamera>& cameras,
+                                    const std::map<map::KeyFrameId, RightObservations>& right,
+                                    const BundleAdjustmentSettings& settings,
+                                    const std::optional<BundleAdjustmentImu>& imu = std::nullopt);
+
+}  // namespace superdyna::mapping

@@ -1,0 +1,66 @@
+#pragma once
+// Tracking with an initialised IMU: the pose of a new frame is predicted from the newest keyframe's
+// optimised state (pose, velocity, biases after the visual-inertial BA) by preintegrating the IMU
+// samples since that keyframe, and the prediction enters the motion-only BA as a Gaussian pose
+// prior.
+//
+// Why a pose prior (and not ORB-SLAM3's joint pose-velocity-bias frame optimisation): the frame's
+// velocity and bias are not needed between keyframes - every prediction restarts from the newest
+// keyframe, whose velocity and biases the VI local BA estimates with all its constraints - so the
+// only IMU information the frame pose can use is the predicted pose and its uncertainty. That
+// uncertainty is the preintegration covariance (white noise, tiny over < 1 s) plus the
+// uncertainty of the keyframe state it starts from: the keyframe velocity error grows into the
+// position as sigma_v * dt, and the keyframe pose error adds directly. The prior is therefore
+// loose against a well-textured image (mm-level vision) and decisive only when vision is weak.
+
+#include <Eigen/Core>
+#include <optional>
+#include <vector>
+
+#include "superdyna/core/geometry.h"
+#include "superdyna/imu/preintegration.h"
+#include "superdyna/io/euroc_dataset.h"
+#include "superdyna/map/keyframe.h"
+#include "superdyna/optim/pose_optimizer.h"
+
+namespace superdyna::tracking {
+
+/// Uncertainty of the keyframe state the prediction starts from.
+struct InertialPriorOptions {
+  double velocity_sigma = 0.05;     ///< Keyframe velocity std [m/s], > 0.
+  double position_sigma_m = 0.005;  ///< Keyframe position std [m], > 0.
+  double rotation_sigma_deg = 0.2;  ///< Keyframe rotation std [deg], > 0.
+  void validate() const;
+};
+
+struct InertialPrediction {
+  SE3d T_w_b;                                     ///< Predicted body pose.
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Predicted IMU velocity [m/s].
+  optim::PosePrior prior;                         ///< The pose prior for motion-only BA.
+};
+
+/// IMU samples collected since the newest keyframe: every frame appends its samples (each frame's
+/// run brackets the interval since the previous frame, so consecutive runs overlap by a sample).
+class ImuSampleBuffer {
+ public:
+  /// Appends the samples newer than the last one held.
+  void append(const std::vector<io::ImuSample>& samples);
+  /// Starts a new keyframe interval at t_ns: returns the samples held (bracketing the interval
+  /// from the previous keyframe) and keeps only those from the last one at or before t_ns.
+  std::vector<io::ImuSample> startInterval(TimeNs t_ns);
+  void clear() { samples_.clear(); }
+  const std::vector<io::ImuSample>& samples() const { return samples_; }
+
+ private:
+  std::vector<io::ImuSample> samples_;
+};
+
+/// Predicts the body pose at t_ns from the keyframe's state and the samples (which must bracket
+/// [keyframe.t_ns, t_ns]); nullopt otherwise. T_b_i: IMU pose in the body frame.
+std::optional<InertialPrediction> predictFromKeyFrame(const map::KeyFrame& keyframe,
+                                                      const std::vector<io::ImuSample>& samples,
+                                                      TimeNs t_ns, const SE3d& T_b_i,
+                                                      const imu::ImuNoise& noise,
+                                                      const InertialPriorOptions& options);
+
+}  // namespace superdyna::tracking

@@ -1,0 +1,274 @@
+#include "superdyna/mapping/bundle_adjustment.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <memory>
+#include <set>
+#include <stdexcept>
+
+#include "superdyna/optim/imu_factors.h"
+#include "superdyna/optim/se3_manifold.h"
+
+namespace superdyna::mapping {
+
+namespace {
+
+/// One reprojection residual, kept to classify it after solving.
+struct BaObservation {
+  map::MapPointId point = map::kNoMapPoint;
+  map::KeyFrameId keyframe = map::kNoKeyFrame;
+  std::shared_ptr<optim::ReprojectionFactor> factor;
+  bool left = true;  ///< Right-camera residuals are not removed individually.
+};
+
+/// Non-owning wrapper so the BaObservation list can evaluate the factors after solving.
+class BorrowedFactor final : public ceres::SizedCostFunction<2, 7, 3> {
+ public:
+  explicit BorrowedFactor(const optim::ReprojectionFactor* factor) : factor_(factor) {}
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    return factor_->Evaluate(parameters, residuals, jacobians);
+  }
+
+ private:
+  const optim::ReprojectionFactor* factor_;
+};
+
+/// The state blocks of one keyframe. The pose block holds T_w_b (visual) or T_w_i (inertial).
+struct KeyFrameBlocks {
+  optim::ImuStateParameters state;
+  bool fixed = false;
+  map::KeyFrameId previous = map::kNoKeyFrame;
+  TimeNs t_ns = 0;
+};
+
+class Problem {
+ public:
+  Problem(map::Map& map, const BundleAdjustmentWindow& window,
+          const std::vector<optim::ReprojectionCamera>& cameras,
+          const std::map<map::KeyFrameId, RightObservations>& right,
+          const BundleAdjustmentSettings& settings, const std::optional<BundleAdjustmentImu>& imu)
+      : map_(map), window_(window), right_(right), settings_(settings), imu_(imu) {
+    if (window.inertial && (!imu || imu->preintegrations == nullptr)) {
+      throw std::invalid_argument("bundleAdjust: an inertial window needs the IMU context");
+    }
+    // Inertial: poses are IMU poses, so the cameras are expressed in the IMU frame.
+    const SE3d T_i_b = window.inertial ? imu->T_b_i.inverse() : SE3d();
+    for (optim::ReprojectionCamera camera : cameras) {
+      camera.T_b_c = T_i_b * camera.T_b_c;
+      cameras_.push_back(camera);
+    }
+    problem_options_.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    problem_options_.manifold_ownership = ceres::TAKE_OWNERSHIP;
+    problem_ = std::make_unique<ceres::Problem>(problem_options_);
+  }
+
+  BundleAdjustmentResult run() {
+    BundleAdjustmentResult result;
+    loadKeyFrames();
+    if (blocks_.size() < 2 || optimisedCount() == 0) return result;
+    loadPoints();
+    addReprojections();
+    result.observations = static_cast<int>(observations_.size());
+    if (observations_.empty()) return result;
+    for (auto& [id, blocks] : blocks_) {
+      if (!problem_->HasParameterBlock(blocks.state.pose.data())) continue;
+      problem_->SetManifold(blocks.state.pose.data(), new optim::SE3Manifold());
+      if (blocks.fixed) problem_->SetParameterBlockConstant(blocks.state.pose.data());
+    }
+    if (window_.inertial) result.imu_edges = addInertialFactors();
+    solve();
+    writeBack();
+    result.outliers = removeOutliers();
+    return result;
+  }
+
+ private:
+  int optimisedCount() const {
+    return static_cast<int>(std::count_if(blocks_.begin(), blocks_.end(),
+                                          [](const auto& b) { return !b.second.fixed; }));
+  }
+
+  void loadKeyFrames() {
+    const auto load = [&](map::KeyFrameId id, bool fixed) {
+      if (blocks_.contains(id)) return;
+      map_.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+        keyframes_.emplace(id, kf);
+        KeyFrameBlocks blocks;
+        const SE3d pose = window_.inertial ? kf.T_w_b * imu_->T_b_i : kf.T_w_b;
+        blocks.state.pose = optim::toPoseBlock(pose);
+        std::copy(kf.v_w.data(), kf.v_w.data() + 3, blocks.state.velocity.begin());
+        std::copy(kf.bg.data(), kf.bg.data() + 3, blocks.state.bias_gyro.begin());
+        std::copy(kf.ba.data(), kf.ba.data() + 3, blocks.state.bias_acc.begin());
+        blocks.fixed = fixed;
+        blocks.previous = kf.previous;
+        blocks.t_ns = kf.t_ns;
+        blocks_.emplace(id, blocks);
+      });
+    };
+    for (const map::KeyFrameId id : window_.optimised)
+      load(id, false);
+    for (const map::KeyFrameId id : window_.fixed)
+      load(id, true);
+  }
+
+  const RightObservations* rightOf(map::KeyFrameId id) const {
+    const auto it = right_.find(id);
+    return it == right_.end() ? nullptr : &it->second;
+  }
+
+  static bool hasRight(const RightObservations* right, std::size_t i) {
+    return right != nullptr && i < right->size() && (*right)[i].has_value();
+  }
+
+  void loadPoints() {
+    std::map<map::MapPointId, int> counts;  // residuals per point
+    for (const auto& [id, kf] : keyframes_) {
+      const RightObservations* right = rightOf(id);
+      for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
+        if (kf.map_points[i] == map::kNoMapPoint) continue;
+        counts[kf.map_points[i]] += hasRight(right, i) ? 2 : 1;
+      }
+    }
+    for (const auto& [id, count] : counts) {
+      if (count < 2) continue;
+      if (const auto p = map_.mapPointPosition(id)) points_.emplace(id, *p);
+    }
+  }
+
+  void addReprojection(map::KeyFrameId kf_id, map::MapPointId point_id, int camera,
+                       const Eigen::Vector2d& normalized, int octave) {
+    const double sigma = optim::octaveSigmaPx(octave, settings_.sigma0_px, settings_.scale_factor);
+    auto factor = std::make_shared<optim::ReprojectionFactor>(
+        normalized, cameras_[static_cast<std::size_t>(camera)], sigma);
+    problem_->AddResidualBlock(new BorrowedFactor(factor.get()),
+                               optim::newHuberLoss(settings_.chi2_outlier),
+                               blocks_.at(kf_id).state.pose.data(), points_.at(point_id).data());
+    observations_.push_back({point_id, kf_id, factor, camera == 0});
+  }
+
+  void addReprojections() {
+    for (const auto& [id, kf] : keyframes_) {
+      const RightObservations* right = rightOf(id);
+      for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
+        const map::MapPointId point_id = kf.map_points[i];
+        if (point_id == map::kNoMapPoint || !points_.contains(point_id)) continue;
+        addReprojection(id, point_id, 0, kf.keypoints[i].normalized, kf.keypoints[i].octave);
+        if (cameras_.size() > 1 && hasRight(right, i)) {
+          addReprojection(id, point_id, 1, *(*right)[i], kf.keypoints[i].octave);
+        }
+      }
+    }
+  }
+
+  /// Preintegration and bias random walk from each optimised keyframe's predecessor (when in the
+  /// problem); the inertial blocks of fixed keyframes are held constant.
+  int addInertialFactors() {
+    int edges = 0;
+    for (auto& [id, blocks] : blocks_) {
+      if (blocks.fixed) continue;
+      const auto previous = blocks_.find(blocks.previous);
+      if (previous == blocks_.end()) continue;
+      const imu::Preintegration* pre = imu_->preintegrations->fromPrevious(map_, id);
+      if (pre == nullptr) continue;
+      const optim::ImuStateBlocks state_i = previous->second.state.blocks();
+      const optim::ImuStateBlocks state_j = blocks.state.blocks();
+      optim::addImuEdge(*problem_, *pre, state_i, state_j);
+      if (previous->second.fixed) holdInertialState(state_i);
+      ++edges;
+    }
+    addBiasPrior();
+    return edges;
+  }
+
+  void holdInertialState(const optim::ImuStateBlocks& state) {
+    problem_->SetParameterBlockConstant(state.pose);
+    problem_->SetParameterBlockConstant(state.velocity);
+    problem_->SetParameterBlockConstant(state.bias_gyro);
+    problem_->SetParameterBlockConstant(state.bias_acc);
+  }
+
+  void addBiasPrior() {
+    if (!(window_.bias_prior_sigma_gyro > 0.0 && window_.bias_prior_sigma_acc > 0.0)) return;
+    for (auto& [id, blocks] : blocks_) {
+      if (blocks.fixed) continue;
+      const optim::ImuStateBlocks state = blocks.state.blocks();
+      if (!problem_->HasParameterBlock(state.bias_gyro)) continue;
+      optim::addBiasPrior(*problem_, state, blocks.state.bias(), window_.bias_prior_sigma_gyro,
+                          window_.bias_prior_sigma_acc);
+      return;  // the oldest optimised keyframe only
+    }
+  }
+
+  void solve() {
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::DENSE_SCHUR;
+    solver.max_num_iterations = settings_.iterations;
+    solver.num_threads = 1;
+    solver.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, problem_.get(), &summary);
+  }
+
+  SE3d bodyPose(const KeyFrameBlocks& blocks) const {
+    const SE3d pose = optim::fromPoseBlock(blocks.state.pose.data());
+    return window_.inertial ? pose * imu_->T_b_i.inverse() : pose;
+  }
+
+  void writeBack() {
+    for (const auto& [id, blocks] : blocks_) {
+      if (blocks.fixed) continue;
+      map_.setKeyFramePose(id, bodyPose(blocks));
+      if (window_.inertial) {
+        const imu::Bias bias = blocks.state.bias();
+        const Eigen::Vector3d v_w(blocks.state.velocity[0], blocks.state.velocity[1],
+                                  blocks.state.velocity[2]);
+        map_.setKeyFrameInertialState(id, v_w, bias.bg, bias.ba);
+      }
+    }
+    for (const auto& [id, p_w] : points_)
+      map_.setMapPointPosition(id, p_w);
+  }
+
+  int removeOutliers() {
+    int removed = 0;
+    for (const BaObservation& o : observations_) {
+      if (!o.left) continue;
+      const auto r = o.factor->residual(
+          optim::fromPoseBlock(blocks_.at(o.keyframe).state.pose.data()), points_.at(o.point));
+      if (!r || r->squaredNorm() > settings_.chi2_outlier) {
+        if (map_.eraseObservation(o.point, o.keyframe)) ++removed;
+      }
+    }
+    for (const auto& [id, p_w] : points_) {
+      if (!map_.updateNormalAndDistances(id)) map_.eraseMapPoint(id);
+    }
+    return removed;
+  }
+
+  map::Map& map_;
+  const BundleAdjustmentWindow& window_;
+  const std::map<map::KeyFrameId, RightObservations>& right_;
+  BundleAdjustmentSettings settings_;
+  const std::optional<BundleAdjustmentImu>& imu_;
+  std::vector<optim::ReprojectionCamera> cameras_;
+  ceres::Problem::Options problem_options_;
+  std::unique_ptr<ceres::Problem> problem_;
+  std::map<map::KeyFrameId, map::KeyFrame> keyframes_;
+  std::map<map::KeyFrameId, KeyFrameBlocks> blocks_;
+  std::map<map::MapPointId, Eigen::Vector3d> points_;
+  std::vector<BaObservation> observations_;
+};
+
+}  // namespace
+
+BundleAdjustmentResult bundleAdjust(map::Map& map, const BundleAdjustmentWindow& window,
+                                    const std::vector<optim::ReprojectionCamera>& cameras,
+                                    const std::map<map::KeyFrameId, RightObservations>& right,
+                                    const BundleAdjustmentSettings& settings,
+                                    const std::optional<BundleAdjustmentImu>& imu) {
+  return Problem(map, window, cameras, right, settings, imu).run();
+}
+
+}  // namespace superdyna::mapping

@@ -1,0 +1,153 @@
+#include "superdyna/mapping/keyframe_culling.h"
+
+#include <gtest/gtest.h>
+
+#include "superdyna/core/error.h"
+#include "superdyna/mapping/keyframe_preintegration.h"
+
+namespace superdyna::mapping {
+namespace {
+
+constexpr TimeNs kStartNs = 1'000'000'000'000;
+constexpr TimeNs kImuPeriodNs = 5'000'000;  // 200 Hz
+
+/// A varying IMU signal at 200 Hz over [kStartNs - 10 ms, end_ns + 10 ms].
+std::vector<io::ImuSample> imuSignal(TimeNs end_ns) {
+  std::vector<io::ImuSample> samples;
+  for (TimeNs t = kStartNs - 2 * kImuPeriodNs; t <= end_ns + 2 * kImuPeriodNs; t += kImuPeriodNs) {
+    const double s = nsToSeconds(t - kStartNs);
+    samples.push_back({t, Eigen::Vector3d(0.3 * std::sin(3 * s), 0.2, -0.4 * std::cos(2 * s)),
+                       Eigen::Vector3d(1.0 + std::sin(5 * s), -0.5, 9.81 + 0.3 * std::cos(4 * s))});
+  }
+  return samples;
+}
+
+/// The samples bracketing [t0, t1].
+std::vector<io::ImuSample> bracketing(const std::vector<io::ImuSample>& all, TimeNs t0, TimeNs t1) {
+  std::vector<io::ImuSample> out;
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const bool next_after_start = k + 1 < all.size() && all[k + 1].t_ns > t0;
+    const bool previous_before_end = k > 0 && all[k - 1].t_ns < t1;
+    if (next_after_start && previous_before_end) out.push_back(all[k]);
+  }
+  return out;
+}
+
+/// `count` keyframes `spacing_ns` apart (times not on the IMU grid) that all observe the same 50
+/// points at octave 0, with the IMU samples between consecutive ones.
+struct CullingScene {
+  map::Map map;
+  std::vector<map::KeyFrameId> ids;
+  std::vector<TimeNs> times;
+  std::vector<io::ImuSample> samples;
+};
+
+std::unique_ptr<CullingScene> makeScene(int count, TimeNs spacing_ns) {
+  auto scene = std::make_unique<CullingScene>();
+  for (int k = 0; k < count; ++k)
+    scene->times.push_back(kStartNs + 1'234'567 + k * spacing_ns);
+  scene->samples = imuSignal(scene->times.back());
+  std::vector<map::MapPointId> points;
+  for (int p = 0; p < 50; ++p) {
+    map::MapPoint point;
+    point.p_w = Eigen::Vector3d(0.1 * p - 2.5, 0.05 * p, 5.0);
+    points.push_back(scene->map.addMapPoint(point));
+  }
+  for (int k = 0; k < count; ++k) {
+    map::KeyFrame kf;
+    kf.t_ns = scene->times[static_cast<std::size_t>(k)];
+    kf.T_w_b.t = Eigen::Vector3d(0.01 * k, 0.0, 0.0);
+    kf.keypoints.resize(points.size());
+    if (k > 0) {
+      kf.imu_from_previous =
+          bracketing(scene->samples, scene->times[static_cast<std::size_t>(k) - 1], kf.t_ns);
+    }
+    const map::KeyFrameId id = scene->map.addKeyFrame(std::move(kf));
+    for (std::size_t p = 0; p < points.size(); ++p)
+      scene->map.addObservation(points[p], id, static_cast<int>(p));
+    scene->ids.push_back(id);
+  }
+  return scene;
+}
+
+TEST(KeyFrameCullingTest, RedundantShareCountsObserversAtSameOrFinerScale) {
+  auto scene = makeScene(4, 100'000'000);
+  EXPECT_DOUBLE_EQ(redundantPointShare(scene->map, scene->ids[1], 3), 1.0);
+  EXPECT_DOUBLE_EQ(redundantPointShare(scene->map, scene->ids[1], 4), 0.0);
+}
+
+TEST(KeyFrameCullingTest, RemovesARedundantKeyFrameAndMergesItsPreintegration) {
+  auto scene = makeScene(5, 100'000'000);  // 0.1 s apart
+  imu::ImuNoise noise;
+  KeyFrameCullingOptions options;
+  options.max_candidates = 1;  // examine only the best covisible one (ties: smallest id)
+  const std::vector<map::KeyFrameId> culled =
+      cullRedundantKeyFrames(scene->map, scene->ids.back(), options, CullingImu{true, 0});
+  // Keyframe 0 is the first of the map, so the candidate examined is keyframe 0: kept.
+  EXPECT_TRUE(culled.empty());
+
+  options.max_candidates = 2;
+  const std::vector<map::KeyFrameId> second =
+      cullRedundantKeyFrames(scene->map, scene->ids.back(), options, CullingImu{true, 0});
+  ASSERT_EQ(second, std::vector<map::KeyFrameId>{scene->ids[1]});
+  EXPECT_FALSE(scene->map.hasKeyFrame(scene->ids[1]));
+  EXPECT_EQ(scene->map.consistencyError(), "");
+
+  // The successor now links to keyframe 0 and holds the samples of both gaps.
+  const map::KeyFrame successor = *scene->map.keyFrame(scene->ids[2]);
+  EXPECT_EQ(successor.previous, scene->ids[0]);
+  const std::vector<io::ImuSample> expected =
+      bracketing(scene->samples, scene->times[0], scene->times[2]);
+  ASSERT_EQ(successor.imu_from_previous.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); ++k)
+    EXPECT_EQ(successor.imu_from_previous[k].t_ns, expected[k].t_ns);
+
+  // Merged preintegration == integrating the concatenated samples over the whole gap.
+  const imu::Bias bias{Eigen::Vector3d(0.01, -0.02, 0.005), Eigen::Vector3d(0.1, 0.05, -0.08)};
+  const auto merged = preintegrateFromPrevious(successor, scene->times[0], bias, noise);
+  ASSERT_TRUE(merged);
+  imu::Preintegration direct(bias, noise);
+  direct.integrateBetween(scene->samples, scene->times[0], scene->times[2]);
+  EXPECT_DOUBLE_EQ(merged->deltaTime(), direct.deltaTime());
+  EXPECT_TRUE(merged->deltaRotation().isApprox(direct.deltaRotation(), 1e-14));
+  EXPECT_TRUE(merged->deltaVelocity().isApprox(direct.deltaVelocity(), 1e-14));
+  EXPECT_TRUE(merged->deltaPosition().isApprox(direct.deltaPosition(), 1e-14));
+  EXPECT_TRUE(merged->covariance().isApprox(direct.covariance(), 1e-12));
+  EXPECT_NEAR(merged->deltaTime(), 0.2, 1e-12);
+
+  // The cache follows the new link.
+  KeyFramePreintegrations cache(noise);
+  const imu::Preintegration* cached = cache.fromPrevious(scene->map, scene->ids[2]);
+  ASSERT_NE(cached, nullptr);
+  EXPECT_NEAR(cached->deltaTime(), 0.2, 1e-12);
+}
+
+TEST(KeyFrameCullingTest, KeepsKeyFramesWhoseRemovalLeavesALongImuGap) {
+  auto scene = makeScene(5, 300'000'000);  // 0.3 s apart: removal leaves 0.6 s
+  KeyFrameCullingOptions options;
+  EXPECT_TRUE(
+      cullRedundantKeyFrames(scene->map, scene->ids.back(), options, CullingImu{true, 0}).empty());
+  // After the inertial initialisation, keyframes older than the window may leave 3 s gaps.
+  const std::vector<map::KeyFrameId> culled =
+      cullRedundantKeyFrames(scene->map, scene->ids.back(), options, CullingImu{true, 2});
+  EXPECT_FALSE(culled.empty());
+  for (const map::KeyFrameId id : culled) {
+    EXPECT_NE(id, scene->ids.front());
+    EXPECT_LT(id, scene->ids[3]);  // never the newest ones
+  }
+  // Without IMU no gap rule applies.
+  auto visual = makeScene(5, 300'000'000);
+  EXPECT_FALSE(cullRedundantKeyFrames(visual->map, visual->ids.back(), options).empty());
+}
+
+TEST(KeyFrameCullingTest, RejectsInvalidOptions) {
+  KeyFrameCullingOptions options;
+  options.redundancy = 0.0;
+  EXPECT_THROW(options.validate(), OptionError);
+  options = {};
+  options.keep_newest = 0;
+  EXPECT_THROW(options.validate(), OptionError);
+}
+
+}  // namespace
+}  // namespace superdyna::mapping
