@@ -196,10 +196,28 @@ TEST(StereoSlam, RecoversFromLostTrackingWithANewMap) {
   EXPECT_GT(slam.numMapPoints(), 100u);
 }
 
-std::unique_ptr<io::DatasetSource> openSynthetic(std::size_t max_frames = 0) {
+/// A 3 s street flight (60 frames), cheaper to generate for the tests that need few frames.
+const fs::path& shortSequence() {
+  static test::ScratchDir dir("system_test_short");
+  static const fs::path path = [] {
+    sim::SimulationOptions options;
+    options.output_dir = dir.path() / "seq";
+    options.overwrite = true;
+    options.motion.duration_s = 3.0;
+    options.world.scene = sim::SceneType::kStreet;
+    options.world.dynamic = sim::DynamicLevel::kNone;
+    options.seed = 7;
+    sim::generateSequence(options);
+    return options.output_dir;
+  }();
+  return path;
+}
+
+std::unique_ptr<io::DatasetSource> openSynthetic(std::size_t max_frames = 0,
+                                                 const fs::path& path = syntheticSequence()) {
   io::DatasetSourceOptions source_options;
   source_options.max_frames = max_frames;
-  return io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
+  return io::openDataset(io::DatasetKind::kEuroc, path, source_options);
 }
 
 SystemOptions concurrentOptions() {
@@ -224,13 +242,13 @@ void expectKeyFramesMatchFrames(const System& slam) {
 }
 
 TEST(StereoSlam, RunMatchesFrameByFrameProcessing) {
-  const auto source_a = openSynthetic(40);
+  const auto source_a = openSynthetic(40, shortSequence());
   SystemOptions options;
   options.mode = SensorMode::kStereoInertial;
   System a(options, source_a->camera0(), *source_a->camera1(), source_a->imu());
   std::size_t callbacks = 0;
   a.run(*source_a, [&](const tracking::TrackingResult&) { ++callbacks; });
-  const auto source_b = openSynthetic(40);
+  const auto source_b = openSynthetic(40, shortSequence());
   System b(options, source_b->camera0(), *source_b->camera1(), source_b->imu());
   while (const auto frame = source_b->next())
     b.process(*frame);
@@ -264,7 +282,7 @@ TEST(ConcurrentSlam, TracksSyntheticStreetWithinBound) {
 }
 
 TEST(ConcurrentSlam, RecoversFromLostTrackingWithANewMap) {
-  const auto source = openSynthetic(60);
+  const auto source = openSynthetic(60, shortSequence());
   System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
   std::size_t lost = 0;
   while (auto frame = source->next()) {
@@ -284,14 +302,14 @@ TEST(ConcurrentSlam, RecoversFromLostTrackingWithANewMap) {
 }
 
 TEST(ConcurrentSlam, AFrontEndErrorEndsTheRun) {
-  FailingSource source(openSynthetic(), 15);
+  FailingSource source(openSynthetic(0, shortSequence()), 15);
   System slam(concurrentOptions(), source.camera0(), *source.camera1(), source.imu());
   test::expectError([&] { slam.run(source); }, {"frame.png", "unreadable image"});
   EXPECT_EQ(slam.trajectory().size(), 15u);  // every frame read before the error was tracked
 }
 
 TEST(ConcurrentSlam, ATrackingThreadErrorStopsTheFrontEnd) {
-  const auto source = openSynthetic();
+  const auto source = openSynthetic(0, shortSequence());
   System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
   test::expectError<std::runtime_error>(
       [&] {
