@@ -35,6 +35,12 @@ void printTimings(const system::TimingSummary& t) {
       t.keyframes > 0 ? t.total.local_ba_ms / static_cast<double>(t.keyframes) : 0.0);
 }
 
+void printMatchCounts(const system::MatchCounts& m, bool class_wise) {
+  fmt::print(
+      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class)\n",
+      class_wise ? "on" : "off", m.stereo, m.stereo_cross_class, m.map, m.map_cross_class);
+}
+
 void printAccuracy(const Trajectory& gt, const Trajectory& estimate) {
   if (gt.empty()) return;
   eval::EvaluationOptions options;
@@ -73,6 +79,15 @@ class RunCommand : public Command {
         ->capture_default_str();
     sub_->add_option("--config", config_, "YAML options file (configs/*.yaml)")
         ->check(CLI::ExistingFile);
+    sub_->add_option("--features", features_,
+                     "Feature extractor: orb | xfeat | superpoint (overrides features.type)")
+        ->check(CLI::IsMember({"orb", "xfeat", "superpoint"}));
+    sub_->add_option("--model", model_,
+                     "ONNX model of a learned extractor (overrides features.model; a bare name is "
+                     "looked up in $SUPERDYNA_MODEL_DIR, then models/)");
+    sub_->add_flag("--instance-masks", instance_masks_,
+                   "Label keypoints with the sequence's instance masks (simulated sequences: "
+                   "mav0/camN/mask/ and instances.csv)");
     sub_->add_flag("--deterministic", deterministic_,
                    "Sequential, single-threaded run: bit-identical output for the same input");
   }
@@ -97,6 +112,14 @@ class RunCommand : public Command {
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
+    if (features_)
+      options.front_end.features.type = features::parseFeatureType(*features_, "--features");
+    if (model_) {
+      if (options.front_end.features.type == features::FeatureType::kOrb) {
+        throw OptionError("--model", "ORB has no model; choose --features xfeat or superpoint");
+      }
+      options.front_end.features.model = *model_;
+    }
     options.deterministic = options.deterministic || deterministic_;
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
@@ -104,11 +127,13 @@ class RunCommand : public Command {
     source_options.stereo = true;
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
+    source_options.instance_masks = instance_masks_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
     if (!source->camera1()) throw OptionError("--mode", "stereo modes need a second camera");
     system::System slam(options, source->camera0(), *source->camera1(), source->imu());
 
-    fmt::print("running {} SLAM on {} ({} frames)\n", system::toString(options.mode),
+    fmt::print("running {} SLAM with {} features on {} ({} frames)\n",
+               system::toString(options.mode), features::toString(options.front_end.features.type),
                path_.string(), source->size());
     const auto start = Clock::now();
     while (const auto frame = source->next()) {
@@ -127,6 +152,7 @@ class RunCommand : public Command {
                static_cast<double>(slam.timings().frames) / std::max(seconds, 1e-9),
                slam.lostFrames(), slam.resets(), output_.string());
     printTimings(slam.timings());
+    printMatchCounts(slam.timings().matches, options.front_end.features.class_wise_matching);
     printAccuracy(source->groundTruth(), slam.trajectory());
     return 0;
   }
@@ -140,6 +166,9 @@ class RunCommand : public Command {
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;
   std::optional<fs::path> config_;
+  std::optional<std::string> features_;
+  std::optional<std::string> model_;
+  bool instance_masks_ = false;
   bool deterministic_ = false;
 };
 

@@ -34,6 +34,7 @@ namespace {
 
 SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
+  options.tracker.projection.same_class_only = options.front_end.features.class_wise_matching;
   options.validate();
   return options;
 }
@@ -47,7 +48,7 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
       front_end_(options_.front_end, cam0, cam1),
       tracker_(
           options_.tracker,
-          tracking::PyramidInfo{options_.front_end.orb.scale_factor, options_.front_end.orb.levels},
+          tracking::PyramidInfo{front_end_.pyramid().scale_factor, front_end_.pyramid().levels},
           options_.mapping, cam0, cam1, usesImu(options_.mode) ? imu : std::nullopt) {
   if (usesImu(options_.mode) && !imu) {
     throw OptionError("--mode", "stereo-inertial needs IMU calibration and samples");
@@ -55,7 +56,12 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
 }
 
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
-  const tracking::TrackingResult result = tracker_.track(front_end_.build(bundle));
+  const tracking::Frame frame = front_end_.build(bundle);
+  const tracking::TrackingResult result = tracker_.track(frame);
+  timings_.matches.stereo += frame.numStereo();
+  timings_.matches.stereo_cross_class += frame.cross_class_stereo;
+  timings_.matches.map += result.matches;
+  timings_.matches.map_cross_class += result.cross_class_matches;
   trajectory_.push_back({bundle.t_ns, result.T_w_b});
   ++timings_.frames;
   if (result.keyframe) ++timings_.keyframes;
