@@ -370,10 +370,6 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
   }
   kf.map_points = tracked;
   const map::KeyFrameId id = map_->addKeyFrame(std::move(kf));
-  // A new observation may change which descriptor represents a point best (ORB-SLAM's
-  // distinctive descriptor; Hamming or Euclidean by the descriptors' type).
-  for (const map::MapPointId point : tracked)
-    if (point != map::kNoMapPoint) map_->updateDescriptor(point);
   const std::vector<map::MapPointId> created = createStereoPoints(frame, T_w_b, id, tracked);
   mapper_.addKeyFrame(id, frame.right_normalized, created);
   reference_ = id;

@@ -87,7 +87,7 @@ const fs::path& dynamicSequence() {
   return path;
 }
 
-/// A 2.5 s indoor flight (static scene): the learned-feature runs are slow, so they get a short
+/// A 2 s indoor flight (static scene): the learned-feature runs are slow, so they get a short
 /// sequence of their own.
 const fs::path& indoorSequence() {
   static test::ScratchDir dir("system_test_indoor");
@@ -95,7 +95,7 @@ const fs::path& indoorSequence() {
     sim::SimulationOptions options;
     options.output_dir = dir.path() / "seq";
     options.overwrite = true;
-    options.motion.duration_s = 2.5;
+    options.motion.duration_s = 2.0;
     options.world.scene = sim::SceneType::kIndoor;
     options.world.dynamic = sim::DynamicLevel::kNone;
     options.landmark_count = 0;
@@ -260,39 +260,41 @@ TEST(ClassWiseMatching, NoCrossClassMatchesWhenOnSomeWhenOff) {
   EXPECT_EQ(on.matches.map_cross_class, 0);
   EXPECT_GT(off.matches.stereo_cross_class, 0);
   EXPECT_GT(off.matches.map_cross_class, 0);
-}
-
-TEST(ClassWiseMatching, WithoutMasksEverythingIsBackground) {
-  const RunSummary run = runSlam(dynamicSequence(), SensorMode::kStereo, {},
-                                 io::DatasetSourceOptions{.max_frames = 10});
-  EXPECT_GT(run.matches.stereo, 1000);
-  EXPECT_EQ(run.matches.stereo_cross_class, 0);
-  EXPECT_EQ(run.matches.map_cross_class, 0);
-}
-
-TEST(LearnedSlam, XFeatTracksSyntheticIndoorScene) {
-  SUPERDYNA_REQUIRE_SHARED(model, "models/xfeat.onnx");
-  SystemOptions options = shippedOptions("euroc_stereo_inertial_xfeat.yaml");
-  options.front_end.features.model = model.string();
-  for (const SensorMode mode : {SensorMode::kStereo, SensorMode::kStereoInertial}) {
-    const RunSummary run = runSlam(indoorSequence(), mode, options);
-    EXPECT_EQ(run.lost, 0u) << toString(mode);
-    const eval::EvaluationResult ate = ateOf(run);
-    const double path = pathLength(run.ground_truth);
-    std::cout << "XFeat, synthetic indoor scene, 2.5 s, " << toString(mode) << ": ATE rmse "
-              << ate.ate_trans.rmse << " m over " << path << " m\n";
-    EXPECT_LT(ate.ate_trans.rmse, kLearnedAteBoundFraction * path) << toString(mode);
-  }
+  // Without masks every keypoint is background: nothing can cross classes.
+  const RunSummary unlabelled = runSlam(dynamicSequence(), SensorMode::kStereo, options,
+                                        io::DatasetSourceOptions{.max_frames = 10});
+  EXPECT_GT(unlabelled.matches.stereo, 1000);
+  EXPECT_EQ(unlabelled.matches.stereo_cross_class, 0);
+  EXPECT_EQ(unlabelled.matches.map_cross_class, 0);
 }
 
 bool havePythonOnnx() {
   return std::system("/usr/bin/python3 -c 'import onnx' >/dev/null 2>&1") == 0;
 }
 
-TEST(LearnedSlam, SuperPointContractModelRunsTheWholePipeline) {
+/// Runs stereo-inertial SLAM on the indoor sequence with the XFeat options and the given
+/// extractor; expects no lost frame and an ATE within kLearnedAteBoundFraction of the path.
+void expectLearnedSlamTracks(features::FeatureType type, const fs::path& model) {
+  SystemOptions options = shippedOptions("euroc_stereo_inertial_xfeat.yaml");
+  options.front_end.features.type = type;
+  options.front_end.features.model = model.string();
+  const RunSummary run = runSlam(indoorSequence(), SensorMode::kStereoInertial, options);
+  EXPECT_EQ(run.lost, 0u);
+  const eval::EvaluationResult ate = ateOf(run);
+  const double path = pathLength(run.ground_truth);
+  std::cout << features::toString(type) << " (" << model.filename().string()
+            << "), synthetic indoor scene, 2 s, stereo-inertial: ATE rmse " << ate.ate_trans.rmse
+            << " m over " << path << " m\n";
+  EXPECT_LT(ate.ate_trans.rmse, kLearnedAteBoundFraction * path);
+}
+
+// One test for both learned extractors: the indoor sequence is generated once per process.
+TEST(LearnedSlam, XFeatAndSuperPointContractModelRunTheWholePipeline) {
   SUPERDYNA_REQUIRE_SHARED(xfeat, "models/xfeat.onnx");
+  expectLearnedSlamTracks(features::FeatureType::kXFeat, xfeat);
   if (!havePythonOnnx()) {
-    GTEST_SKIP() << "Debian's python3-onnx is not installed (apt-get install python3-onnx)";
+    GTEST_SKIP() << "SuperPoint part skipped: Debian's python3-onnx is not installed "
+                    "(apt-get install python3-onnx)";
   }
   const test::ScratchDir dir("system_superpoint");
   const fs::path model = dir / "superpoint_xfeat.onnx";
@@ -300,16 +302,7 @@ TEST(LearnedSlam, SuperPointContractModelRunsTheWholePipeline) {
                               "/scripts/make_superpoint_from_xfeat.py from-xfeat --xfeat " +
                               xfeat.string() + " --out " + model.string() + " >/dev/null";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
-  SystemOptions options = shippedOptions("euroc_stereo_inertial_xfeat.yaml");
-  options.front_end.features.type = features::FeatureType::kSuperPoint;
-  options.front_end.features.model = model.string();
-  const RunSummary run = runSlam(indoorSequence(), SensorMode::kStereoInertial, options);
-  EXPECT_EQ(run.lost, 0u);
-  const eval::EvaluationResult ate = ateOf(run);
-  const double path = pathLength(run.ground_truth);
-  std::cout << "SuperPoint contract (composed from XFeat), synthetic indoor scene, 2.5 s: ATE rmse "
-            << ate.ate_trans.rmse << " m over " << path << " m\n";
-  EXPECT_LT(ate.ate_trans.rmse, kLearnedAteBoundFraction * path);
+  expectLearnedSlamTracks(features::FeatureType::kSuperPoint, model);
 }
 
 }  // namespace

@@ -119,7 +119,10 @@ class Map {
   /// the descriptor rows of the observing keyframe keypoints, the one with the smallest median
   /// distance to the others (ties: the oldest keyframe). Distances: Hamming for binary rows
   /// (CV_8UC1, ORB), Euclidean for float rows (CV_32FC1, learned descriptors). False when the
-  /// point is unknown or none of its keyframes stores descriptors.
+  /// point is unknown or none of its keyframes stores descriptors. Not called by the tracker:
+  /// on the synthetic MH_03 run (stereo-inertial) updating tracked points at every keyframe gave
+  /// ATE 2.8 cm instead of 2.5 cm with ORB and 37.7 cm instead of 14.1 cm with XFeat, against
+  /// keeping the descriptor of the creating keyframe.
   bool updateDescriptor(MapPointId id);
   bool increaseVisible(MapPointId id, int count = 1);
   bool increaseFound(MapPointId id, int count = 1);
