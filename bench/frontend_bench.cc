@@ -1,7 +1,10 @@
 // Speed of the front end on real 752x480 EuRoC frames (../shared/data/euroc/V1_01_easy_micro, or
 // SUPERDYNA_BENCH_EUROC): ORB extraction, ORB extraction + unrectified stereo matching of a pair,
-// and XFeat extraction (model from $SUPERDYNA_MODEL_DIR or ../shared/models). A benchmark whose
-// data or model is absent reports why and is skipped.
+// XFeat extraction (model from $SUPERDYNA_MODEL_DIR or ../shared/models), XFeat extraction + float
+// stereo matching of a pair, and SuperPoint-contract extraction with a model composed from
+// xfeat.onnx at start-up by scripts/make_superpoint_from_xfeat.py (needs Debian's python3-onnx;
+// written to a temporary folder). A benchmark whose data or model is absent reports why and is
+// skipped.
 //
 //   build/bin/superdyna_bench [--benchmark_filter=Orb] [--benchmark_repetitions=5]
 
@@ -15,6 +18,7 @@
 
 #include "superdyna/features/orb_extractor.h"
 #include "superdyna/features/stereo_matcher.h"
+#include "superdyna/features/superpoint_extractor.h"
 #include "superdyna/features/xfeat_extractor.h"
 #include "superdyna/io/dataset_source.h"
 
@@ -83,6 +87,73 @@ void BM_XFeatExtract(benchmark::State& state) {
     benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
 }
 BENCHMARK(BM_XFeatExtract)->Unit(benchmark::kMillisecond);
+
+fs::path xfeatModel() {
+  return fromEnvironmentOr("SUPERDYNA_MODEL_DIR", fs::path(SUPERDYNA_SHARED_DIR) / "models") /
+         "xfeat.onnx";
+}
+
+void BM_XFeatStereoPair(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  if (!fs::exists(xfeatModel())) {
+    return state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
+  }
+  features::XFeatOptions options;
+  options.model = xfeatModel().string();
+  features::XFeatExtractor left(options), right(options);
+  const features::StereoMatcher matcher(sample->cam0, sample->cam1);
+  std::size_t matches = 0;
+  for (auto _ : state) {
+    const auto stereo =
+        matcher.match(left.extract(sample->frame.image0), right.extract(sample->frame.image1));
+    matches = stereo.size();
+    benchmark::DoNotOptimize(stereo);
+  }
+  state.counters["stereo_matches"] = static_cast<double>(matches);
+}
+BENCHMARK(BM_XFeatStereoPair)->Unit(benchmark::kMillisecond);
+
+/// The SuperPoint-contract model composed from xfeat.onnx, made once; nullopt (with the reason)
+/// when xfeat.onnx or python3-onnx is missing.
+const std::optional<fs::path>& composedSuperPoint(std::string* why) {
+  static std::string reason;
+  static const std::optional<fs::path> model = []() -> std::optional<fs::path> {
+    if (!fs::exists(xfeatModel())) {
+      reason = "xfeat.onnx not found (SUPERDYNA_MODEL_DIR)";
+      return std::nullopt;
+    }
+    if (std::system("/usr/bin/python3 -c 'import onnx' >/dev/null 2>&1") != 0) {
+      reason = "Debian's python3-onnx is not installed";
+      return std::nullopt;
+    }
+    const fs::path out = fs::temp_directory_path() / "superdyna_bench_superpoint_xfeat.onnx";
+    const std::string command = std::string("/usr/bin/python3 ") + SUPERDYNA_SOURCE_DIR +
+                                "/scripts/make_superpoint_from_xfeat.py from-xfeat --xfeat " +
+                                xfeatModel().string() + " --out " + out.string() + " >/dev/null";
+    if (std::system(command.c_str()) != 0) {
+      reason = "scripts/make_superpoint_from_xfeat.py failed";
+      return std::nullopt;
+    }
+    return out;
+  }();
+  *why = reason;
+  return model;
+}
+
+void BM_SuperPointExtract(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  std::string why;
+  const auto& model = composedSuperPoint(&why);
+  if (!model) return state.SkipWithError(why.c_str());
+  features::SuperPointOptions options;
+  options.model = model->string();
+  features::SuperPointExtractor extractor(options);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
+}
+BENCHMARK(BM_SuperPointExtract)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -53,6 +53,12 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       busy(t.busy.mapping_ms));
 }
 
+void printMatchCounts(const system::MatchCounts& m, bool class_wise) {
+  fmt::print(
+      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class)\n",
+      class_wise ? "on" : "off", m.stereo, m.stereo_cross_class, m.map, m.map_cross_class);
+}
+
 /// Prints a progress line at most about once a second.
 class ProgressLine {
  public:
@@ -121,6 +127,15 @@ class RunCommand : public Command {
     sub_->add_option("--keyframes", keyframes_,
                      "Keyframe trajectory file (same --format; default: <output "
                      "stem>_keyframes<output extension> beside --output)");
+    sub_->add_option("--features", features_,
+                     "Feature extractor: orb | xfeat | superpoint (overrides features.type)")
+        ->check(CLI::IsMember({"orb", "xfeat", "superpoint"}));
+    sub_->add_option("--model", model_,
+                     "ONNX model of a learned extractor (overrides features.model; a bare name is "
+                     "looked up in $SUPERDYNA_MODEL_DIR, then models/)");
+    sub_->add_flag("--instance-masks", instance_masks_,
+                   "Label keypoints with the sequence's instance masks (simulated sequences: "
+                   "mav0/camN/mask/ and instances.csv)");
     sub_->add_flag("--deterministic", deterministic_,
                    "Sequential, single-threaded run: bit-identical output for the same input "
                    "(default: concurrent front end, tracking and local mapping threads)");
@@ -157,6 +172,14 @@ class RunCommand : public Command {
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
+    if (features_)
+      options.front_end.features.type = features::parseFeatureType(*features_, "--features");
+    if (model_) {
+      if (options.front_end.features.type == features::FeatureType::kOrb) {
+        throw OptionError("--model", "ORB has no model; choose --features xfeat or superpoint");
+      }
+      options.front_end.features.model = *model_;
+    }
     options.deterministic = deterministic_;
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
@@ -164,6 +187,7 @@ class RunCommand : public Command {
     source_options.stereo = !system::isMonocular(options.mode);
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
+    source_options.instance_masks = instance_masks_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
     if (!source_options.stereo || !source->camera1()) {
       if (!system::isMonocular(options.mode)) {
@@ -172,7 +196,8 @@ class RunCommand : public Command {
     }
     system::System slam(options, source->camera0(), source->camera1(), source->imu());
 
-    fmt::print("running {} SLAM ({}) on {} ({} frames)\n", system::toString(options.mode),
+    fmt::print("running {} SLAM with {} features ({}) on {} ({} frames)\n",
+               system::toString(options.mode), features::toString(options.front_end.features.type),
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
                source->size());
     ProgressLine progress;
@@ -193,6 +218,7 @@ class RunCommand : public Command {
                  slam.initializingFrames());
     }
     printTimings(slam.options(), t);
+    printMatchCounts(t.matches, options.front_end.features.class_wise_matching);
     printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
     // Visual-only monocular trajectories have no metric scale.
     if (options.mode == system::SensorMode::kMono) {
@@ -211,6 +237,9 @@ class RunCommand : public Command {
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;
   std::optional<fs::path> config_;
+  std::optional<std::string> features_;
+  std::optional<std::string> model_;
+  bool instance_masks_ = false;
   bool deterministic_ = false;
 };
 

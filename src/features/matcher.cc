@@ -14,30 +14,15 @@ namespace superdyna::features {
 
 namespace {
 
-constexpr int kNoDistance = std::numeric_limits<int>::max();
-
-/// Throws unless both sets hold binary descriptors of the same length, one row per keypoint.
-void requireComparableBinary(const FeatureSet& a, const FeatureSet& b, const char* who) {
-  a.validate();
-  b.validate();
-  if (a.descriptor_type != DescriptorType::kBinary ||
-      b.descriptor_type != DescriptorType::kBinary) {
-    throw InputError(fmt::format("{}: only binary descriptors are supported (got {} and {})", who,
-                                 toString(a.descriptor_type), toString(b.descriptor_type)));
-  }
-  if (!a.empty() && !b.empty() && a.descriptorLength() != b.descriptorLength()) {
-    throw InputError(fmt::format("{}: descriptor lengths differ ({} and {} bytes)", who,
-                                 a.descriptorLength(), b.descriptorLength()));
-  }
-}
+constexpr double kNoDistance = std::numeric_limits<double>::infinity();
 
 /// Best and second-best distance over distinct candidates.
 struct BestTwo {
-  int best = kNoDistance;
-  int second = kNoDistance;
+  double best = kNoDistance;
+  double second = kNoDistance;
   int index = -1;
 
-  void offer(int distance, int candidate) {
+  void offer(double distance, int candidate) {
     if (distance < best) {
       second = best;
       best = distance;
@@ -47,7 +32,7 @@ struct BestTwo {
     }
   }
   /// Passes the distance bound and best < ratio * second (always when ratio >= 1 or alone).
-  bool accepted(int max_distance, double ratio) const {
+  bool accepted(double max_distance, double ratio) const {
     if (index < 0 || best > max_distance) return false;
     if (ratio >= 1.0 || second == kNoDistance) return true;
     return best < ratio * second;
@@ -93,6 +78,49 @@ int hammingDistance(const std::uint8_t* a, const std::uint8_t* b, int bytes) {
   for (; i < bytes; ++i)
     distance += std::popcount(static_cast<unsigned>(a[i] ^ b[i]));
   return distance;
+}
+
+float l2Distance(const float* a, const float* b, int length) {
+  float sum = 0.0f;
+  for (int k = 0; k < length; ++k) {
+    const float d = a[k] - b[k];
+    sum += d * d;
+  }
+  return std::sqrt(sum);
+}
+
+DescriptorMetric::DescriptorMetric(const FeatureSet& query, const FeatureSet& train,
+                                   const char* who)
+    : query_(&query.descriptors),
+      train_(&train.descriptors),
+      type_(query.descriptor_type),
+      length_(query.descriptorLength()) {
+  query.validate();
+  train.validate();
+  if (query.descriptor_type != train.descriptor_type) {
+    throw InputError(fmt::format("{}: descriptor types differ ({} and {})", who,
+                                 toString(query.descriptor_type), toString(train.descriptor_type)));
+  }
+  if (!query.empty() && !train.empty() && query.descriptorLength() != train.descriptorLength()) {
+    throw InputError(fmt::format("{}: descriptor lengths differ ({} and {})", who,
+                                 query.descriptorLength(), train.descriptorLength()));
+  }
+}
+
+double descriptorDistance(const cv::Mat& a, const cv::Mat& b) {
+  if (a.rows != 1 || b.rows != 1 || a.cols != b.cols || a.type() != b.type() ||
+      (a.type() != CV_8UC1 && a.type() != CV_32FC1)) {
+    throw InputError(
+        "descriptorDistance: expected two CV_8UC1 or two CV_32FC1 rows of equal length");
+  }
+  if (a.type() == CV_8UC1)
+    return hammingDistance(a.ptr<std::uint8_t>(0), b.ptr<std::uint8_t>(0), a.cols);
+  return l2Distance(a.ptr<float>(0), b.ptr<float>(0), a.cols);
+}
+
+bool hasOrientation(const FeatureSet& features) {
+  return !features.empty() && std::all_of(features.keypoints.begin(), features.keypoints.end(),
+                                          [](const Keypoint& k) { return k.angle >= 0.0f; });
 }
 
 int hammingDistance(const cv::Mat& a, const cv::Mat& b) {
@@ -152,6 +180,7 @@ std::vector<Match> filterByOrientation(const std::vector<Match>& matches,
 
 void BruteForceMatchOptions::validate() const {
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
   orientation.validate();
 }
@@ -159,16 +188,20 @@ void BruteForceMatchOptions::validate() const {
 std::vector<Match> matchBruteForce(const FeatureSet& query, const FeatureSet& train,
                                    const BruteForceMatchOptions& options) {
   options.validate();
-  requireComparableBinary(query, train, "matchBruteForce");
+  const DescriptorMetric distance(query, train, "matchBruteForce");
   if (query.empty() || train.empty()) return {};
+  const double max_distance = distance.bound(options.max_distance, options.max_l2_distance);
   const int n = static_cast<int>(query.size()), m = static_cast<int>(train.size());
-  const int bytes = query.descriptorLength();
   std::vector<BestTwo> rows(static_cast<std::size_t>(n));
   std::vector<BestTwo> cols(static_cast<std::size_t>(m));
   for (int i = 0; i < n; ++i) {
-    const std::uint8_t* qi = query.descriptors.ptr<std::uint8_t>(i);
+    const int class_id = query.keypoints[static_cast<std::size_t>(i)].class_id;
     for (int j = 0; j < m; ++j) {
-      const int d = hammingDistance(qi, train.descriptors.ptr<std::uint8_t>(j), bytes);
+      if (options.same_class_only &&
+          train.keypoints[static_cast<std::size_t>(j)].class_id != class_id) {
+        continue;
+      }
+      const double d = distance(i, j);
       rows[static_cast<std::size_t>(i)].offer(d, j);
       cols[static_cast<std::size_t>(j)].offer(d, i);
     }
@@ -176,12 +209,12 @@ std::vector<Match> matchBruteForce(const FeatureSet& query, const FeatureSet& tr
   std::vector<Match> matches;
   for (int i = 0; i < n; ++i) {
     const BestTwo& row = rows[static_cast<std::size_t>(i)];
-    if (!row.accepted(options.max_distance, options.ratio)) continue;
+    if (!row.accepted(max_distance, options.ratio)) continue;
     if (options.mutual && cols[static_cast<std::size_t>(row.index)].index != i) continue;
     matches.push_back({i, row.index, row.best});
   }
   if (!options.mutual) matches = uniqueTrain(matches, train.size());
-  if (options.check_orientation) {
+  if (options.check_orientation && hasOrientation(query) && hasOrientation(train)) {
     matches = filterByOrientation(matches, query.keypoints, train.keypoints, options.orientation);
   }
   return matches;
@@ -234,6 +267,7 @@ std::vector<int> KeypointGrid::within(const Eigen::Vector2d& center, double radi
 void ProjectionMatchOptions::validate() const {
   if (!(radius_px > 0.0)) throw OptionError("radius_px", "must be > 0");
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
   orientation.validate();
 }
@@ -243,7 +277,7 @@ std::vector<Match> matchByProjection(const FeatureSet& query,
                                      const FeatureSet& train, const KeypointGrid& train_grid,
                                      const ProjectionMatchOptions& options) {
   options.validate();
-  requireComparableBinary(query, train, "matchByProjection");
+  const DescriptorMetric distance(query, train, "matchByProjection");
   if (predicted.size() != query.size()) {
     throw InputError(fmt::format("matchByProjection: {} predicted pixels for {} query features",
                                  predicted.size(), query.size()));
@@ -254,7 +288,7 @@ std::vector<Match> matchByProjection(const FeatureSet& query,
                     "train features",
                     train_grid.size(), train.size()));
   }
-  const int bytes = query.descriptorLength();
+  const double max_distance = distance.bound(options.max_distance, options.max_l2_distance);
   std::vector<Match> matches;
   for (std::size_t i = 0; i < query.size(); ++i) {
     if (!predicted[i].allFinite()) continue;
@@ -263,17 +297,21 @@ std::vector<Match> matchByProjection(const FeatureSet& query,
       min_octave = query.keypoints[i].octave - options.max_octave_difference;
       max_octave = query.keypoints[i].octave + options.max_octave_difference;
     }
-    const std::uint8_t* qi = query.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
+    const int class_id = query.keypoints[i].class_id;
     BestTwo best;
     for (const int j : train_grid.within(predicted[i], options.radius_px, min_octave, max_octave)) {
-      best.offer(hammingDistance(qi, train.descriptors.ptr<std::uint8_t>(j), bytes), j);
+      if (options.same_class_only &&
+          train.keypoints[static_cast<std::size_t>(j)].class_id != class_id) {
+        continue;
+      }
+      best.offer(distance(static_cast<int>(i), j), j);
     }
-    if (best.accepted(options.max_distance, options.ratio)) {
+    if (best.accepted(max_distance, options.ratio)) {
       matches.push_back({static_cast<int>(i), best.index, best.best});
     }
   }
   matches = uniqueTrain(matches, train.size());
-  if (options.check_orientation) {
+  if (options.check_orientation && hasOrientation(query) && hasOrientation(train)) {
     matches = filterByOrientation(matches, query.keypoints, train.keypoints, options.orientation);
   }
   return matches;

@@ -14,22 +14,9 @@ namespace superdyna::features {
 
 namespace {
 
-constexpr int kNoDistance = std::numeric_limits<int>::max();
+constexpr double kNoDistance = std::numeric_limits<double>::infinity();
 /// Rays closer to parallel than this (1 - cos^2 of their angle) do not triangulate.
 constexpr double kMinParallaxSin2 = 1e-12;
-
-void requireBinaryPair(const FeatureSet& left, const FeatureSet& right, const char* who) {
-  left.validate();
-  right.validate();
-  if (left.descriptor_type != DescriptorType::kBinary ||
-      right.descriptor_type != DescriptorType::kBinary) {
-    throw InputError(fmt::format("{}: only binary descriptors are supported", who));
-  }
-  if (!left.empty() && !right.empty() && left.descriptorLength() != right.descriptorLength()) {
-    throw InputError(fmt::format("{}: descriptor lengths differ ({} and {} bytes)", who,
-                                 left.descriptorLength(), right.descriptorLength()));
-  }
-}
 
 void requireRatio(double ratio) {
   if (!(ratio > 0.0 && ratio <= 1.0)) {
@@ -53,7 +40,7 @@ void requireAngleTolerance(double degrees) {
   }
 }
 
-bool passesRatio(int best, int second, double ratio) {
+bool passesRatio(double best, double second, double ratio) {
   return ratio >= 1.0 || second == kNoDistance || best < ratio * second;
 }
 
@@ -91,6 +78,7 @@ struct RightBearing {
 void StereoMatchOptions::validate() const {
   if (!(max_epipolar_error_px > 0.0)) throw OptionError("max_epipolar_error_px", "must be > 0");
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
   if (max_octave_difference < 0) throw OptionError("max_octave_difference", "must be >= 0");
   requireAngleTolerance(max_angle_difference_deg);
@@ -140,14 +128,14 @@ std::optional<Eigen::Vector3d> StereoMatcher::triangulate(const Eigen::Vector3d&
 
 std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
                                               const FeatureSet& right) const {
-  requireBinaryPair(left, right, "StereoMatcher::match");
+  const DescriptorMetric distance_of(left, right, "StereoMatcher::match");
+  const double max_distance = distance_of.bound(options_.max_distance, options_.max_l2_distance);
   std::vector<RightBearing> bearings(right.size());
   for (std::size_t j = 0; j < right.size(); ++j) {
     const auto f = camera1_.unproject(right.keypoints[j].pixel);
     if (!f || !(f->z() > 0.0)) continue;
     bearings[j] = {*f, *f / f->z(), true};
   }
-  const int bytes = left.descriptorLength();
   std::vector<StereoMatch> matches;
   for (std::size_t i = 0; i < left.size(); ++i) {
     const auto f0 = camera0_.unproject(left.keypoints[i].pixel);
@@ -156,22 +144,22 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
     const double line_norm = std::hypot(line.x(), line.y());
     if (line_norm < 1e-12) continue;
     const double max_residual = options_.max_epipolar_error_px / focal1_px_ * line_norm;
-    const std::uint8_t* di = left.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
     const int octave = left.keypoints[i].octave;
-    int best = kNoDistance, second = kNoDistance;
+    const int class_id = left.keypoints[i].class_id;
+    double best = kNoDistance, second = kNoDistance;
     StereoMatch candidate;
     for (std::size_t j = 0; j < right.size(); ++j) {
       const RightBearing& rb = bearings[j];
       const Keypoint& candidate_kp = right.keypoints[j];
       if (!rb.valid || std::abs(candidate_kp.octave - octave) > options_.max_octave_difference ||
+          (options_.same_class_only && candidate_kp.class_id != class_id) ||
           !anglesAgree(left.keypoints[i].angle, candidate_kp.angle, roll_deg_,
                        options_.max_angle_difference_deg)) {
         continue;
       }
       const double residual = std::abs(line.dot(rb.x));
       if (residual > max_residual) continue;
-      const int distance =
-          hammingDistance(di, right.descriptors.ptr<std::uint8_t>(static_cast<int>(j)), bytes);
+      const double distance = distance_of(static_cast<int>(i), static_cast<int>(j));
       if (distance >= second) continue;  // cannot change the best two
       const auto p = triangulate(*f0, rb.f);
       if (!p || p->z() < options_.min_depth_m || p->z() > options_.max_depth_m ||
@@ -191,8 +179,7 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
         second = distance;
       }
     }
-    if (candidate.right >= 0 && best <= options_.max_distance &&
-        passesRatio(best, second, options_.ratio)) {
+    if (candidate.right >= 0 && best <= max_distance && passesRatio(best, second, options_.ratio)) {
       matches.push_back(candidate);
     }
   }
@@ -277,6 +264,7 @@ void RectifiedStereoOptions::validate() const {
   if (!(row_tolerance_px >= 0.0)) throw OptionError("row_tolerance_px", "must be >= 0");
   if (!(level_scale_factor >= 1.0)) throw OptionError("level_scale_factor", "must be >= 1");
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
   if (max_octave_difference < 0) throw OptionError("max_octave_difference", "must be >= 0");
   requireAngleTolerance(max_angle_difference_deg);
@@ -299,7 +287,8 @@ std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& l
                                                                 const cv::Mat& right_image,
                                                                 const FeatureSet& left,
                                                                 const FeatureSet& right) const {
-  requireBinaryPair(left, right, "RectifiedStereoMatcher::match");
+  const DescriptorMetric distance_of(left, right, "RectifiedStereoMatcher::match");
+  const double max_distance = distance_of.bound(options_.max_distance, options_.max_l2_distance);
   for (const cv::Mat* image : {&left_image, &right_image}) {
     if (image->type() != CV_8UC1 || image->size() != left.image_size ||
         image->size() != right.image_size) {
@@ -321,7 +310,6 @@ std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& l
   });
   const auto row_of = [&](int j) { return right.keypoints[static_cast<std::size_t>(j)].pixel.y(); };
 
-  const int bytes = left.descriptorLength();
   std::vector<RectifiedStereoMatch> matches;
   for (std::size_t i = 0; i < left.size(); ++i) {
     const Keypoint& kp = left.keypoints[i];
@@ -329,8 +317,8 @@ std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& l
         options_.row_tolerance_px * std::pow(options_.level_scale_factor, kp.octave);
     auto it = std::lower_bound(by_row.begin(), by_row.end(), kp.pixel.y() - tolerance,
                                [&](int j, double v) { return row_of(j) < v; });
-    const std::uint8_t* di = left.descriptors.ptr<std::uint8_t>(static_cast<int>(i));
-    int best = kNoDistance, second = kNoDistance, best_j = -1;
+    double best = kNoDistance, second = kNoDistance;
+    int best_j = -1;
     for (; it != by_row.end() && row_of(*it) <= kp.pixel.y() + tolerance; ++it) {
       const Keypoint& candidate = right.keypoints[static_cast<std::size_t>(*it)];
       const double disparity = kp.pixel.x() - candidate.pixel.x();
@@ -339,7 +327,7 @@ std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& l
           !anglesAgree(kp.angle, candidate.angle, 0.0, options_.max_angle_difference_deg)) {
         continue;
       }
-      const int distance = hammingDistance(di, right.descriptors.ptr<std::uint8_t>(*it), bytes);
+      const double distance = distance_of(static_cast<int>(i), *it);
       if (distance < best || (distance == best && *it < best_j)) {
         second = best;
         best = distance;
@@ -348,7 +336,7 @@ std::vector<RectifiedStereoMatch> RectifiedStereoMatcher::match(const cv::Mat& l
         second = distance;
       }
     }
-    if (best_j < 0 || best > options_.max_distance || !passesRatio(best, second, options_.ratio)) {
+    if (best_j < 0 || best > max_distance || !passesRatio(best, second, options_.ratio)) {
       continue;
     }
     const auto refined =

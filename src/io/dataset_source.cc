@@ -93,6 +93,11 @@ class EurocSource : public FrameListSource {
       throw InputError(InputLocation(dataset_.root() / "imu0"),
                        "inertial mode requested but the dataset has no imu0");
     }
+    if (options.instance_masks && !dataset_.hasInstanceMasks()) {
+      throw InputError(InputLocation(dataset_.root() / "instances.csv"),
+                       "instance masks requested but the dataset has no instances.csv and "
+                       "cam0/mask/ (only simulated sequences have them)");
+    }
     if (options.stereo) camera1_ = dataset_.cam1Calibration();
     if (options.inertial) imu_ = dataset_.imuCalibration();
     frames_ = selectFrames(availableFrames(), options, dataset_.root());
@@ -123,6 +128,17 @@ class EurocSource : public FrameListSource {
     if (const auto gt = dataset_.groundTruthNearest(bundle->t_ns, kGroundTruthToleranceNs)) {
       bundle->T_w_b_gt = gt->T_w_b;
     }
+    if (options_.instance_masks) addMasks(frames_[index], bundle);
+  }
+
+  void addMasks(const StereoFrameRef& frame, FrameBundle* bundle) const {
+    InstanceMasks masks;
+    masks.cam0 = dataset_.loadInstanceMask(frame.cam0, bundle->image0.size());
+    if (!bundle->image1.empty()) {
+      masks.cam1 = dataset_.loadInstanceMask(frame.cam1, bundle->image1.size());
+    }
+    masks.class_of_instance = dataset_.instanceClasses();
+    bundle->masks = std::move(masks);
   }
 
   std::vector<StereoFrameRef> availableFrames() const {
@@ -143,6 +159,9 @@ class KittiSource : public FrameListSource {
       : FrameListSource(options), dataset_(KittiDataset::open(path)) {
     if (options.inertial) {
       throw InputError(InputLocation(path), "KITTI odometry has no IMU: use stereo or mono mode");
+    }
+    if (options.instance_masks) {
+      throw InputError(InputLocation(path), "KITTI odometry has no instance masks");
     }
     if (options.stereo && !dataset_.isStereo()) {
       throw InputError(InputLocation(path),

@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdlib>
 #include <iterator>
+#include <opencv2/imgcodecs.hpp>
 #include <utility>
 
 #include "superdyna/core/error.h"
@@ -240,6 +242,31 @@ GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
   return result;
 }
 
+int instanceClassId(const std::string& name, const InputLocation& where) {
+  if (name == "background") return kInstanceClassBackground;
+  if (name == "vehicle") return kInstanceClassVehicle;
+  if (name == "pedestrian") return kInstanceClassPedestrian;
+  throw InputError(where,
+                   fmt::format("unknown class '{}' (background | vehicle | pedestrian)", name));
+}
+
+/// mav0/instances.csv: "id,class,..." per instance (the simulator adds moving and lifetime).
+std::map<int, int> readInstanceClasses(const fs::path& csv) {
+  std::map<int, int> classes;
+  for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
+    requireFieldCount(row, csv, 2);
+    const double id = parseFiniteDouble(row.fields[0], row.at(csv, "id"));
+    if (id != std::round(id) || id < 1 || id > 65535) {
+      throw InputError(row.at(csv, "id"), "expected an instance id in [1, 65535]");
+    }
+    if (!classes.emplace(static_cast<int>(id), instanceClassId(row.fields[1], row.at(csv, "class")))
+             .second) {
+      throw InputError(row.at(csv, "id"), fmt::format("instance {} listed twice", id));
+    }
+  }
+  return classes;
+}
+
 template <typename T>
 std::optional<TimeRange> rangeOf(const std::vector<T>& samples) {
   if (samples.empty()) return std::nullopt;
@@ -277,7 +304,37 @@ EurocDataset EurocDataset::open(const fs::path& path) {
     dataset.ground_truth_ = std::move(rows.states);
     dataset.ground_truth_full_state_ = rows.full_state;
   }
+
+  const fs::path instances_csv = dataset.root_ / "instances.csv";
+  if (fs::is_regular_file(instances_csv) && fs::is_directory(cam0_dir / "mask")) {
+    dataset.instance_classes_ = readInstanceClasses(instances_csv);
+    dataset.has_instance_masks_ = true;
+  }
   return dataset;
+}
+
+cv::Mat EurocDataset::loadInstanceMask(const fs::path& image, cv::Size size) const {
+  const fs::path file = image.parent_path().parent_path() / "mask" / image.filename();
+  if (!fs::is_regular_file(file)) throw InputError(InputLocation{file}, "mask file does not exist");
+  const cv::Mat mask = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (mask.empty()) throw InputError(InputLocation{file}, "cannot decode the mask image");
+  if (mask.type() != CV_16UC1 || mask.size() != size) {
+    throw InputError(InputLocation{file},
+                     fmt::format("expected a 16-bit single-channel {}x{} mask, got {}x{} of "
+                                 "OpenCV type {}",
+                                 size.width, size.height, mask.cols, mask.rows, mask.type()));
+  }
+  for (int r = 0; r < mask.rows; ++r) {
+    const auto* row = mask.ptr<std::uint16_t>(r);
+    for (int c = 0; c < mask.cols; ++c) {
+      if (row[c] != 0 && !instance_classes_.contains(row[c])) {
+        throw InputError(InputLocation{file},
+                         fmt::format("pixel ({}, {}) holds instance {}, which {} does not list", c,
+                                     r, row[c], (root_ / "instances.csv").string()));
+      }
+    }
+  }
+  return mask;
 }
 
 TimeRange EurocDataset::cam0TimeRange() const {

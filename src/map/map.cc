@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "superdyna/core/error.h"
@@ -47,10 +48,13 @@ int KeyFrame::numTrackedPoints() const {
 
 void MapOptions::validate() const {
   if (T_b_c.empty()) throw OptionError("map.T_b_c", "needs at least one camera");
-  if (!(scale_factor > 1.0) || !std::isfinite(scale_factor)) {
-    throw OptionError("map.scale_factor", "must be a finite number > 1");
-  }
   if (num_levels < 1) throw OptionError("map.num_levels", "must be >= 1");
+  // A single level (learned extractors) has no scale between levels: 1 is then fine.
+  if (!(scale_factor >= 1.0) || !std::isfinite(scale_factor) ||
+      (num_levels > 1 && !(scale_factor > 1.0))) {
+    throw OptionError("map.scale_factor",
+                      "must be a finite number > 1 (>= 1 with a single pyramid level)");
+  }
 }
 
 Map::Map(MapOptions options) : options_(std::move(options)) {
@@ -330,6 +334,40 @@ bool Map::increaseFound(MapPointId id, int count) {
   MapPoint* point = findPoint(id);
   if (point == nullptr) return false;
   point->found_count += count;
+  return true;
+}
+
+bool Map::updateDescriptor(MapPointId id) {
+  const std::lock_guard lock(mutex_);
+  MapPoint* point = findPoint(id);
+  if (point == nullptr) return false;
+  std::vector<cv::Mat> rows;
+  for (const auto& [keyframe_id, keypoint_index] : point->observations) {
+    const KeyFrame& keyframe = keyframes_.at(keyframe_id);
+    if (!keyframe.descriptors.empty()) rows.push_back(keyframe.descriptors.row(keypoint_index));
+  }
+  if (rows.empty()) return false;
+  const std::size_t n = rows.size();
+  const int norm = rows.front().type() == CV_8UC1 ? cv::NORM_HAMMING : cv::NORM_L2;
+  std::vector<double> distances(n * n, 0.0);
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = a + 1; b < n; ++b) {
+      distances[a * n + b] = distances[b * n + a] = cv::norm(rows[a], rows[b], norm);
+    }
+  }
+  std::size_t best = 0;
+  double best_median = std::numeric_limits<double>::infinity();
+  for (std::size_t a = 0; a < n; ++a) {
+    std::vector<double> row(distances.begin() + static_cast<std::ptrdiff_t>(a * n),
+                            distances.begin() + static_cast<std::ptrdiff_t>((a + 1) * n));
+    std::sort(row.begin(), row.end());
+    const double median = row[(n - 1) / 2];  // lower median: includes the zero self-distance
+    if (median < best_median) {
+      best_median = median;
+      best = a;
+    }
+  }
+  point->descriptor = rows[best].clone();
   return true;
 }
 

@@ -1,4 +1,5 @@
-// YAML options file of the SLAM system: one map per section, one number (or true/false) per key.
+// YAML options file of the SLAM system: one map per section, one number, true/false or name per
+// key.
 
 #include <cmath>
 #include <functional>
@@ -42,22 +43,50 @@ Setter boolSetter(bool& target) {
   };
 }
 
+Setter stringSetter(std::string& target) {
+  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
+    target = file.scalar(node, field);
+  };
+}
+
+Setter featureTypeSetter(features::FeatureType& target) {
+  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
+    const std::string value = file.scalar(node, field);
+    try {
+      target = features::parseFeatureType(value, field);
+    } catch (const OptionError&) {
+      throw InputError(file.at(node, field),
+                       "expected orb, xfeat or superpoint, got '" + value + "'");
+    }
+  };
+}
+
 std::map<std::string, Section> sectionsOf(SystemOptions& o) {
   auto& t = o.tracker;
   auto& f = o.front_end;
   return {
+      {"features",
+       {{"type", featureTypeSetter(f.features.type)},
+        {"model", stringSetter(f.features.model)},
+        {"max_keypoints", intSetter(f.features.max_keypoints)},
+        {"detection_threshold", doubleSetter(f.features.detection_threshold)},
+        {"nms_radius_px", intSetter(f.features.nms_radius_px)},
+        {"grid_cell_px", intSetter(f.features.grid_cell_px)},
+        {"inference_threads", intSetter(f.features.inference_threads)},
+        {"class_wise_matching", boolSetter(f.features.class_wise_matching)}}},
       {"orb",
-       {{"features", intSetter(f.orb.features)},
-        {"scale_factor", doubleSetter(f.orb.scale_factor)},
-        {"levels", intSetter(f.orb.levels)},
-        {"fast_threshold", intSetter(f.orb.fast_threshold)},
-        {"min_fast_threshold", intSetter(f.orb.min_fast_threshold)},
-        {"cell_size", intSetter(f.orb.cell_size)},
-        {"edge_threshold", intSetter(f.orb.edge_threshold)},
-        {"blur_sigma", doubleSetter(f.orb.blur_sigma)}}},
+       {{"features", intSetter(f.features.orb.features)},
+        {"scale_factor", doubleSetter(f.features.orb.scale_factor)},
+        {"levels", intSetter(f.features.orb.levels)},
+        {"fast_threshold", intSetter(f.features.orb.fast_threshold)},
+        {"min_fast_threshold", intSetter(f.features.orb.min_fast_threshold)},
+        {"cell_size", intSetter(f.features.orb.cell_size)},
+        {"edge_threshold", intSetter(f.features.orb.edge_threshold)},
+        {"blur_sigma", doubleSetter(f.features.orb.blur_sigma)}}},
       {"stereo",
        {{"max_epipolar_error_px", doubleSetter(f.stereo.max_epipolar_error_px)},
         {"max_distance", intSetter(f.stereo.max_distance)},
+        {"max_l2_distance", doubleSetter(f.stereo.max_l2_distance)},
         {"ratio", doubleSetter(f.stereo.ratio)},
         {"max_octave_difference", intSetter(f.stereo.max_octave_difference)},
         {"max_angle_difference_deg", doubleSetter(f.stereo.max_angle_difference_deg)},
@@ -66,6 +95,7 @@ std::map<std::string, Section> sectionsOf(SystemOptions& o) {
       {"projection",
        {{"radius_px", doubleSetter(t.projection.radius_px)},
         {"max_distance", intSetter(t.projection.max_distance)},
+        {"max_l2_distance", doubleSetter(t.projection.max_l2_distance)},
         {"ratio", doubleSetter(t.projection.ratio)},
         {"max_octave_difference", intSetter(t.projection.max_octave_difference)},
         {"check_orientation", boolSetter(t.projection.check_orientation)}}},

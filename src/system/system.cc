@@ -64,6 +64,7 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
+  options.tracker.projection.same_class_only = options.front_end.features.class_wise_matching;
   options.validate();
   return options;
 }
@@ -77,7 +78,7 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
       front_end_(options_.front_end, cam0, isMonocular(options_.mode) ? std::nullopt : cam1),
       tracker_(
           options_.tracker,
-          tracking::PyramidInfo{options_.front_end.orb.scale_factor, options_.front_end.orb.levels},
+          tracking::PyramidInfo{front_end_.pyramid().scale_factor, front_end_.pyramid().levels},
           options_.mapping, cam0, isMonocular(options_.mode) ? std::nullopt : cam1,
           usesImu(options_.mode) ? imu : std::nullopt) {
   if (usesImu(options_.mode) && !imu) {
@@ -126,6 +127,10 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
   const tracking::TrackingResult result = tracker_.track(frame);
   timings_.busy.tracking_ms += threadCpuMs() - cpu_start;
   record(frame.t_ns, result);
+  timings_.matches.stereo += frame.numStereo();
+  timings_.matches.stereo_cross_class += frame.cross_class_stereo;
+  timings_.matches.map += result.matches;
+  timings_.matches.map_cross_class += result.cross_class_matches;
   ++timings_.frames;
   if (result.keyframe) {
     ++timings_.keyframes;

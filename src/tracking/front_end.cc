@@ -2,9 +2,16 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <limits>
 
 namespace superdyna::tracking {
+
+static_assert(io::kInstanceClassBackground == features::kClassBackground &&
+                  io::kInstanceClassVehicle == features::kClassVehicle &&
+                  io::kInstanceClassPedestrian == features::kClassPedestrian,
+              "instance-mask classes and keypoint classes must use the same ids");
 
 namespace {
 
@@ -32,15 +39,34 @@ int Frame::numStereo() const {
 }
 
 void FrontEndOptions::validate() const {
-  orb.validate();
+  features.validate();
   stereo.validate();
+}
+
+void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+                    std::vector<features::Keypoint>& keypoints) {
+  if (instance_mask.empty()) return;
+  for (features::Keypoint& k : keypoints) {
+    const int col =
+        std::clamp(static_cast<int>(std::lround(k.pixel.x())), 0, instance_mask.cols - 1);
+    const int row =
+        std::clamp(static_cast<int>(std::lround(k.pixel.y())), 0, instance_mask.rows - 1);
+    k.instance_id = instance_mask.at<std::uint16_t>(row, col);
+    k.class_id = masks.classOf(k.instance_id);
+  }
 }
 
 FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& cam0,
                    const std::optional<io::CameraCalibration>& cam1)
-    : camera0_(cam0.cameraModel()), left_extractor_(options.orb), right_extractor_(options.orb) {
+    : camera0_(cam0.cameraModel()), pyramid_(features::pyramidOf(options.features)) {
   options.validate();
-  if (cam1) stereo_matcher_.emplace(cam0, *cam1, options.stereo);
+  left_extractor_ = features::makeExtractor(options.features);
+  if (cam1) {
+    right_extractor_ = features::makeExtractor(options.features);
+    features::StereoMatchOptions stereo = options.stereo;
+    stereo.same_class_only = options.features.class_wise_matching;
+    stereo_matcher_.emplace(cam0, *cam1, stereo);
+  }
 }
 
 Frame FrontEnd::build(const io::FrameBundle& bundle) {
@@ -50,9 +76,13 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   frame.imu = bundle.imu;
   const bool stereo = stereo_matcher_ && !bundle.image1.empty();
   auto start = Clock::now();
-  frame.features = left_extractor_.extract(bundle.image0);
+  frame.features = left_extractor_->extract(bundle.image0);
   features::FeatureSet right;
-  if (stereo) right = right_extractor_.extract(bundle.image1);
+  if (stereo) right = right_extractor_->extract(bundle.image1);
+  if (bundle.masks) {
+    labelKeypoints(bundle.masks->cam0, *bundle.masks, frame.features.keypoints);
+    if (stereo) labelKeypoints(bundle.masks->cam1, *bundle.masks, right.keypoints);
+  }
   frame.extract_ms = millisecondsSince(start);
 
   start = Clock::now();
@@ -72,9 +102,10 @@ void FrontEnd::matchStereo(const features::FeatureSet& right, Frame& frame) cons
   for (const features::StereoMatch& m : stereo_matcher_->match(frame.features, right)) {
     const auto i = static_cast<std::size_t>(m.left);
     if (!frame.normalized[i].allFinite()) continue;
-    const Eigen::Vector2d r = normalizedOf(
-        stereo_matcher_->camera1(), right.keypoints[static_cast<std::size_t>(m.right)].pixel);
+    const features::Keypoint& partner = right.keypoints[static_cast<std::size_t>(m.right)];
+    const Eigen::Vector2d r = normalizedOf(stereo_matcher_->camera1(), partner.pixel);
     if (!r.allFinite()) continue;
+    if (partner.class_id != frame.features.keypoints[i].class_id) ++frame.cross_class_stereo;
     frame.depth_m[i] = m.depth_m;
     frame.p_c0[i] = m.p_c0;
     frame.right_normalized[i] = r;

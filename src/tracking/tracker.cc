@@ -235,6 +235,14 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
   const std::vector<LocalPoint> points = localPoints();
   const std::vector<features::Match> matches = matchLocalPoints(frame, points, prediction.T_w_b);
   result.matches = static_cast<int>(matches.size());
+  for (const features::Match& m : matches) {
+    int point_class = features::kClassBackground;
+    map_->readMapPoint(points[static_cast<std::size_t>(m.query)].id,
+                       [&](const map::MapPoint& p) { point_class = p.class_id; });
+    if (point_class != frame.features.keypoints[static_cast<std::size_t>(m.train)].class_id) {
+      ++result.cross_class_matches;
+    }
+  }
   if (result.matches < options_.min_inliers) return tracked;
   const optim::PoseOptimizationResult pose =
       pose_optimizer_.optimize(prediction.T_w_b, cameras_, poseObservations(frame, points, matches),
@@ -396,7 +404,7 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
   // Keep only the points that project into the image; remember their index in `points`.
   std::vector<int> visible;
   std::vector<Eigen::Vector2d> predicted;
-  query.descriptor_type = features::DescriptorType::kBinary;
+  query.descriptor_type = frame.features.descriptor_type;  // map points keep the frames' type
   query.image_size = frame.features.image_size;
   std::vector<cv::Mat> rows;
   for (std::size_t k = 0; k < points.size(); ++k) {

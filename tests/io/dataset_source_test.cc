@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "support/test_support.h"
 
 namespace superdyna::io {
@@ -80,6 +82,88 @@ TEST(DatasetSourceTest, KittiMonoServesGroundTruthAndRefusesImuAndStereo) {
   options.inertial = false;
   options.stereo = true;
   test::expectError([&] { openDataset(DatasetKind::kKitti, path, options); }, {"no right images"});
+}
+
+/// The shared EuRoC excerpt (linked, not copied) plus instance masks for the first three stereo
+/// frames of both cameras: a vehicle (id 1) rectangle and a pedestrian (id 2) one; with
+/// `stray_id` > 0 the third cam0 mask also holds that id, which instances.csv does not list.
+fs::path eurocWithMasks(const fs::path& shared, const test::ScratchDir& dir, int stray_id = 0) {
+  const fs::path mav0 = dir / "seq" / "mav0";
+  fs::create_directories(mav0);
+  for (const char* stream : {"imu0", "state_groundtruth_estimate0"})
+    fs::create_directory_symlink(shared / "mav0" / stream, mav0 / stream);
+  for (const char* camera : {"cam0", "cam1"}) {
+    fs::create_directories(mav0 / camera / "mask");
+    for (const char* entry : {"sensor.yaml", "data.csv"})
+      fs::create_symlink(shared / "mav0" / camera / entry, mav0 / camera / entry);
+    fs::create_directory_symlink(shared / "mav0" / camera / "data", mav0 / camera / "data");
+  }
+  test::writeFile(mav0 / "instances.csv",
+                  "# id,class,moving,t_begin_ns,t_end_ns\n1,vehicle,1,0,0\n2,pedestrian,0,0,0\n");
+  const EurocDataset dataset = EurocDataset::open(dir / "seq");
+  for (std::size_t k = 0; k < 3; ++k) {
+    const StereoFrameRef& frame = dataset.stereoFrames()[k];
+    for (const fs::path& image : {frame.cam0, frame.cam1}) {
+      cv::Mat mask(480, 752, CV_16UC1, cv::Scalar(0));
+      mask(cv::Rect(100, 50, 200, 100)).setTo(1);
+      mask(cv::Rect(400, 300, 40, 120)).setTo(2);
+      if (stray_id > 0 && k == 2 && image == frame.cam0) mask.at<std::uint16_t>(5, 7) = stray_id;
+      const fs::path file = image.parent_path().parent_path() / "mask" / image.filename();
+      EXPECT_TRUE(cv::imwrite(file.string(), mask)) << file;
+    }
+  }
+  return dir / "seq";
+}
+
+TEST(DatasetSourceTest, EurocServesInstanceMasksWhenAsked) {
+  SUPERDYNA_REQUIRE_SHARED(shared, kEuroc);
+  const test::ScratchDir dir("dataset_source_masks");
+  const fs::path path = eurocWithMasks(shared, dir);
+  EXPECT_TRUE(EurocDataset::open(path).hasInstanceMasks());
+  EXPECT_FALSE(EurocDataset::open(shared).hasInstanceMasks());
+
+  DatasetSourceOptions options;
+  options.max_frames = 3;
+  EXPECT_FALSE(openDataset(DatasetKind::kEuroc, path, options)->next()->masks);
+  options.instance_masks = true;
+  const auto source = openDataset(DatasetKind::kEuroc, path, options);
+  std::size_t frames = 0;
+  while (const auto bundle = source->next()) {
+    ASSERT_TRUE(bundle->masks);
+    const InstanceMasks& masks = *bundle->masks;
+    ASSERT_EQ(masks.cam0.type(), CV_16UC1);
+    ASSERT_EQ(masks.cam1.size(), cv::Size(752, 480));
+    EXPECT_EQ(masks.cam0.at<std::uint16_t>(60, 110), 1);
+    EXPECT_EQ(masks.cam1.at<std::uint16_t>(350, 420), 2);
+    EXPECT_EQ(masks.cam0.at<std::uint16_t>(10, 10), 0);
+    EXPECT_EQ(masks.classOf(1), kInstanceClassVehicle);
+    EXPECT_EQ(masks.classOf(2), kInstanceClassPedestrian);
+    EXPECT_EQ(masks.classOf(0), kInstanceClassBackground);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 3u);
+
+  test::expectError([&] { openDataset(DatasetKind::kEuroc, shared, options); },
+                    {"instances.csv", "instance masks requested"});
+}
+
+TEST(DatasetSourceTest, EurocMaskProblemsNameTheFile) {
+  SUPERDYNA_REQUIRE_SHARED(shared, kEuroc);
+  const test::ScratchDir dir("dataset_source_bad_masks");
+  const fs::path path = eurocWithMasks(shared, dir, 7);
+  DatasetSourceOptions options;
+  options.instance_masks = true;
+  options.max_frames = 3;
+  const auto source = openDataset(DatasetKind::kEuroc, path, options);
+  ASSERT_TRUE(source->next());
+  ASSERT_TRUE(source->next());
+  test::expectError([&] { source->next(); }, {"mask", ".png", "instance 7", "instances.csv"});
+  options.first_frame = 3;  // no mask was written for the 4th frame
+  test::expectError([&] { openDataset(DatasetKind::kEuroc, path, options)->next(); },
+                    {"mask file does not exist"});
+
+  test::writeFile(path / "mav0" / "instances.csv", "1,truck,1,0,0\n");
+  test::expectError([&] { EurocDataset::open(path); }, {"instances.csv", "unknown class 'truck'"});
 }
 
 TEST(DatasetSourceTest, ParsesKindNames) {

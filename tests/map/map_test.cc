@@ -359,5 +359,58 @@ TEST_F(ThreeKeyFrameMap, TransformWorldMovesPosesPointsAndVelocities) {
   EXPECT_EQ(map.consistencyError(), "");
 }
 
+/// A keyframe of one keypoint whose descriptor is `descriptor`.
+KeyFrame keyFrameWithDescriptor(const cv::Mat& descriptor) {
+  KeyFrame kf;
+  kf.keypoints.resize(1);
+  kf.descriptors = descriptor.clone();
+  return kf;
+}
+
+TEST(MapDescriptor, RepresentativeFloatDescriptorHasTheSmallestMedianDistance) {
+  Map map;
+  // Five one-float observations: 0, 10, 1.9, 2 and 2.1. Median distances (self included, lower
+  // median as ORB-SLAM): 2 for 0, 7.9 for 10, 0.2 for 1.9, 0.1 for 2, 0.2 for 2.1: 2 wins.
+  const MapPointId point = map.addMapPoint(MapPoint{});
+  for (const float value : {0.0f, 10.0f, 1.9f, 2.0f, 2.1f}) {
+    const KeyFrameId kf = map.addKeyFrame(keyFrameWithDescriptor(cv::Mat(1, 1, CV_32FC1, value)));
+    ASSERT_TRUE(map.addObservation(point, kf, 0));
+  }
+  ASSERT_TRUE(map.updateDescriptor(point));
+  const cv::Mat descriptor = map.mapPoint(point)->descriptor;
+  ASSERT_EQ(descriptor.type(), CV_32FC1);
+  EXPECT_EQ(descriptor.at<float>(0, 0), 2.0f);
+}
+
+TEST(MapDescriptor, RepresentativeBinaryDescriptorUsesHammingDistance) {
+  Map map;
+  // 0x0F is one bit from 0x0E, 0x0D and 0x0B, which are two bits apart: Hamming median
+  // distances 1 (0x0F), 2 (the others) and 4 (0x80), so 0x0F wins; by value (L2) 0x0E would.
+  const MapPointId point = map.addMapPoint(MapPoint{});
+  for (const int value : {0x80, 0x0E, 0x0F, 0x0D, 0x0B}) {
+    const KeyFrameId kf =
+        map.addKeyFrame(keyFrameWithDescriptor(cv::Mat(1, 1, CV_8UC1, cv::Scalar(value))));
+    ASSERT_TRUE(map.addObservation(point, kf, 0));
+  }
+  ASSERT_TRUE(map.updateDescriptor(point));
+  EXPECT_EQ(map.mapPoint(point)->descriptor.at<std::uint8_t>(0, 0), 0x0F);
+  EXPECT_FALSE(map.updateDescriptor(point + 1));
+}
+
+TEST(MapOptions, ASinglePyramidLevelAcceptsScaleOne) {
+  MapOptions options;
+  options.num_levels = 1;
+  options.scale_factor = 1.0;
+  Map map(options);
+  const KeyFrameId kf = map.addKeyFrame(makeKeyFrame(1));
+  const MapPointId point = map.addMapPoint(makePoint(Eigen::Vector3d(0.0, 0.0, 4.0)));
+  ASSERT_TRUE(map.addObservation(point, kf, 0));
+  ASSERT_TRUE(map.updateNormalAndDistances(point));
+  EXPECT_NEAR(map.mapPoint(point)->max_distance_m, 4.0, 1e-12);
+  EXPECT_NEAR(map.mapPoint(point)->min_distance_m, 4.0, 1e-12);
+  options.num_levels = 8;
+  EXPECT_THROW(Map{options}, OptionError);
+}
+
 }  // namespace
 }  // namespace superdyna::map

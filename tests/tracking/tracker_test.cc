@@ -45,7 +45,7 @@ TEST(TrackerOptions, RejectsBadValues) {
   options.projection.radius_px = 0.0;
   test::expectError<OptionError>([&] { makeTracker(options); }, {"radius"});
   FrontEndOptions front_end;
-  front_end.orb.features = 0;
+  front_end.features.orb.features = 0;
   test::expectError<OptionError>([&] { makeFrontEnd(front_end); }, {"features"});
 }
 

@@ -1,7 +1,12 @@
 #pragma once
-// Descriptor matching for binary (ORB) features: Hamming distance, brute-force mutual nearest
-// neighbours with a ratio test, projection-guided search through a grid index of keypoints, and
-// ORB-SLAM's rotation-consistency check.
+// Descriptor matching: brute-force mutual nearest neighbours with a ratio test, projection-guided
+// search through a grid index of keypoints, and ORB-SLAM's rotation-consistency check. Both kinds
+// of descriptors are handled (FeatureSet::descriptor_type): binary ones (ORB) by Hamming distance
+// [bits], float ones (XFeat, SuperPoint: unit-norm rows) by Euclidean distance (in [0, 2]).
+//
+// Class-wise matching: with `same_class_only` a query keypoint is compared only with train
+// keypoints of its semantic class (Keypoint::class_id), so that a feature on a car never pairs
+// with one on a wall or a pedestrian.
 //
 // All matchers are deterministic (ties go to the lower index) and return matches ordered by
 // query index.
@@ -20,11 +25,50 @@ int hammingDistance(const std::uint8_t* a, const std::uint8_t* b, int bytes);
 /// Hamming distance of two single-row CV_8UC1 descriptors of equal length.
 int hammingDistance(const cv::Mat& a, const cv::Mat& b);
 
+/// Euclidean distance of two float descriptors of `length` floats.
+float l2Distance(const float* a, const float* b, int length);
+
+/// Distances between the descriptor rows of two feature sets of the same descriptor type and
+/// length: Hamming [bits] for kBinary, Euclidean for kFloat.
+class DescriptorMetric {
+ public:
+  /// Throws InputError naming `who` unless the sets are valid, of one descriptor type and (when
+  /// both are non-empty) of one descriptor length.
+  DescriptorMetric(const FeatureSet& query, const FeatureSet& train, const char* who);
+
+  /// Distance of query row i and train row j.
+  double operator()(int i, int j) const {
+    if (type_ == DescriptorType::kBinary) {
+      return hammingDistance(query_->ptr<std::uint8_t>(i), train_->ptr<std::uint8_t>(j), length_);
+    }
+    return l2Distance(query_->ptr<float>(i), train_->ptr<float>(j), length_);
+  }
+  DescriptorType type() const { return type_; }
+  /// The bound that applies to this type: max_hamming [bits] or max_l2.
+  double bound(int max_hamming, double max_l2) const {
+    return type_ == DescriptorType::kBinary ? max_hamming : max_l2;
+  }
+
+ private:
+  const cv::Mat* query_;
+  const cv::Mat* train_;
+  DescriptorType type_;
+  int length_;
+};
+
+/// Distance of two single-row descriptors of one OpenCV type: Hamming for CV_8UC1, Euclidean for
+/// CV_32FC1. Throws InputError for other types or different lengths.
+double descriptorDistance(const cv::Mat& a, const cv::Mat& b);
+
+/// Whether every keypoint of the set has an orientation (angle >= 0); false when empty. Learned
+/// extractors give none, and the rotation-consistency check is then skipped.
+bool hasOrientation(const FeatureSet& features);
+
 /// A correspondence between query feature `query` and train feature `train`.
 struct Match {
   int query = -1;
   int train = -1;
-  int distance = 0;  ///< Hamming distance [bits].
+  double distance = 0.0;  ///< Hamming distance [bits] or Euclidean distance (DescriptorMetric).
 };
 
 /// The rotation-consistency check: a histogram of the keypoint angle differences of the
@@ -48,19 +92,21 @@ std::vector<Match> filterByOrientation(const std::vector<Match>& matches,
                                        const OrientationCheckOptions& options = {});
 
 struct BruteForceMatchOptions {
-  int max_distance = 64;  ///< Largest accepted Hamming distance [bits], >= 0.
+  int max_distance = 64;         ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;  ///< Largest accepted Euclidean distance (float), >= 0.
   /// Lowe's ratio test: best < ratio * second best (over distinct train features); in (0, 1],
   /// 1 disables it.
   double ratio = 0.8;
   bool mutual = true;  ///< Keep a match only if the query is also the train's nearest neighbour.
-  bool check_orientation = false;  ///< Apply filterByOrientation() to the result.
+  /// Apply filterByOrientation() to the result (skipped when a set has no orientations).
+  bool check_orientation = false;
+  bool same_class_only = false;  ///< Compare only keypoints of one class_id (file comment).
   OrientationCheckOptions orientation;
 
   void validate() const;
 };
 
-/// Exhaustive matching of binary descriptors. Throws InputError unless both sets are kBinary
-/// with equal descriptor lengths.
+/// Exhaustive matching. Throws InputError unless both sets have one descriptor type and length.
 std::vector<Match> matchBruteForce(const FeatureSet& query, const FeatureSet& train,
                                    const BruteForceMatchOptions& options = {});
 
@@ -87,14 +133,17 @@ class KeypointGrid {
 };
 
 struct ProjectionMatchOptions {
-  double radius_px = 15.0;  ///< Search radius around each predicted pixel [px], > 0.
-  int max_distance = 100;   ///< Largest accepted Hamming distance [bits], >= 0.
+  double radius_px = 15.0;       ///< Search radius around each predicted pixel [px], > 0.
+  int max_distance = 100;        ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;  ///< Largest accepted Euclidean distance (float), >= 0.
   /// best < ratio * second best among the candidates in the radius; in (0, 1], 1 disables it.
   double ratio = 0.9;
   /// Candidates must satisfy |octave - query octave| <= this; < 0 accepts every octave.
   int max_octave_difference = -1;
-  bool check_orientation = true;  ///< Apply filterByOrientation() to the result.
+  /// Apply filterByOrientation() to the result (skipped when a set has no orientations).
+  bool check_orientation = true;
   OrientationCheckOptions orientation;
+  bool same_class_only = false;  ///< Candidates must share the query's class_id (file comment).
 
   void validate() const;
 };
@@ -103,7 +152,7 @@ struct ProjectionMatchOptions {
 /// projected with the predicted pose), the train feature within the radius with the smallest
 /// distance, subject to max_distance and the ratio test. Each train feature is matched at most
 /// once (to its closest query). `train_grid` must index train.keypoints. Throws InputError when
-/// predicted.size() != query.size() or the descriptors are not comparable kBinary ones.
+/// predicted.size() != query.size() or the descriptors are not comparable.
 std::vector<Match> matchByProjection(const FeatureSet& query,
                                      const std::vector<Eigen::Vector2d>& predicted,
                                      const FeatureSet& train, const KeypointGrid& train_grid,

@@ -10,9 +10,11 @@
 // with the same orientation, up to the rig's in-plane rotation (roll of cam1 about cam0's optical
 // axis), so |angle_right - angle_left - roll| <= max_angle_difference_deg, and (4) the two rays
 // triangulate (midpoint method) in front of both cameras with a cam0 depth in
-// [min_depth_m, max_depth_m]. The candidate with the smallest
-// Hamming distance wins if it passes max_distance and the ratio test; each right keypoint is used
-// at most once (by its closest left keypoint).
+// [min_depth_m, max_depth_m], and (5) with same_class_only, both keypoints carry the same
+// class_id. The candidate with the smallest descriptor distance (Hamming for binary, Euclidean
+// for float descriptors; matcher.h: DescriptorMetric) wins if it passes the distance bound of its
+// type (max_distance, max_l2_distance) and the ratio test; each right keypoint is used at most
+// once (by its closest left keypoint).
 //
 // RectifiedStereoMatcher handles rectified stereo (KITTI-like: same intrinsics, the right camera
 // shifted by the baseline along x): candidates on the same row with consistent octave and angle,
@@ -38,13 +40,15 @@ namespace superdyna::features {
 struct StereoMatchOptions {
   double max_epipolar_error_px = 2.0;  ///< Epipolar distance bound [undistorted px], > 0.
   int max_distance = 64;               ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;        ///< Largest accepted Euclidean distance (float), >= 0.
   double ratio = 0.9;                  ///< best < ratio * second best; in (0, 1], 1 disables.
   int max_octave_difference = 1;       ///< Octave gap allowed between the two keypoints, >= 0.
   /// Largest keypoint angle gap after removing the rig's roll [deg], in (0, 180] (180: no
   /// check; keypoints without angle always pass).
   double max_angle_difference_deg = 30.0;
-  double min_depth_m = 0.1;   ///< Nearest accepted depth (z in cam0) [m], > 0.
-  double max_depth_m = 60.0;  ///< Farthest accepted depth [m], > min_depth_m.
+  double min_depth_m = 0.1;      ///< Nearest accepted depth (z in cam0) [m], > 0.
+  double max_depth_m = 60.0;     ///< Farthest accepted depth [m], > min_depth_m.
+  bool same_class_only = false;  ///< Pair only keypoints of one class_id (file comment).
 
   void validate() const;
 };
@@ -53,7 +57,7 @@ struct StereoMatchOptions {
 struct StereoMatch {
   int left = -1;                                   ///< Index into the left (cam0) features.
   int right = -1;                                  ///< Index into the right (cam1) features.
-  int distance = 0;                                ///< Hamming distance [bits].
+  double distance = 0.0;                           ///< Descriptor distance (matcher.h).
   double epipolar_error_px = 0.0;                  ///< As defined in the file comment [px].
   Eigen::Vector3d p_c0 = Eigen::Vector3d::Zero();  ///< Triangulated point in cam0 [m].
   double depth_m = 0.0;                            ///< p_c0.z() [m].
@@ -68,7 +72,7 @@ class StereoMatcher {
                 const StereoMatchOptions& options = {});
 
   /// Matches ordered by left index. Keypoints whose pixel cannot be unprojected are skipped.
-  /// Throws InputError unless both sets are kBinary with equal descriptor lengths.
+  /// Throws InputError unless both sets have one descriptor type and length.
   std::vector<StereoMatch> match(const FeatureSet& left, const FeatureSet& right) const;
 
   /// Epipolar distance [px] of the bearing pair (f0 in cam0, f1 in cam1); +inf when f1 points
@@ -106,6 +110,7 @@ struct RectifiedStereoOptions {
   /// Scale between pyramid levels of the extractor (OrbOptions::scale_factor), >= 1.
   double level_scale_factor = 1.2;
   int max_distance = 75;          ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;   ///< Largest accepted Euclidean distance (float), >= 0.
   double ratio = 0.9;             ///< best < ratio * second best; in (0, 1], 1 disables.
   int max_octave_difference = 1;  ///< Octave gap allowed between the two keypoints, >= 0.
   /// Largest keypoint angle gap [deg], in (0, 180] (180: no check); see StereoMatchOptions.
@@ -124,7 +129,7 @@ struct RectifiedStereoOptions {
 struct RectifiedStereoMatch {
   int left = -1;
   int right = -1;
-  int distance = 0;           ///< Hamming distance [bits].
+  double distance = 0.0;      ///< Descriptor distance (matcher.h).
   double u_right = 0.0;       ///< Refined column of the point in the right image [px].
   double disparity_px = 0.0;  ///< Left column minus u_right [px], > 0.
   double depth_m = 0.0;       ///< fx * baseline / disparity [m].

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -16,6 +17,20 @@
 #include "superdyna/io/euroc_dataset.h"
 
 namespace superdyna::io {
+
+/// Ground-truth instance segmentation of one frame (simulated sequences).
+struct InstanceMasks {
+  cv::Mat cam0;  ///< CV_16UC1 instance id per pixel of image0; 0 = static background.
+  cv::Mat cam1;  ///< The same for image1; empty in mono.
+  /// Instance id -> semantic class (kInstanceClass*, equal to features::kClass*).
+  std::map<int, int> class_of_instance;
+
+  /// Class of an instance id; background (0) for id 0 and ids not listed.
+  int classOf(int instance_id) const {
+    const auto it = class_of_instance.find(instance_id);
+    return it == class_of_instance.end() ? kInstanceClassBackground : it->second;
+  }
+};
 
 struct FrameBundle {
   std::size_t index = 0;  ///< 0-based position in the served sequence.
@@ -28,6 +43,8 @@ struct FrameBundle {
   /// after t_ns within one IMU period before it. Empty without IMU.
   std::vector<ImuSample> imu;
   std::optional<SE3d> T_w_b_gt;  ///< Ground-truth body pose at t_ns (within 1 ms), if any.
+  /// Instance masks, when DatasetSourceOptions::instance_masks asked for them.
+  std::optional<InstanceMasks> masks;
 };
 
 enum class DatasetKind { kEuroc, kKitti };
@@ -38,6 +55,9 @@ struct DatasetSourceOptions {
   bool inertial = true;         ///< Serve IMU samples (error if the dataset has none).
   std::size_t first_frame = 0;  ///< Skip this many frames (of those the IMU covers).
   std::size_t max_frames = 0;   ///< Serve at most this many (0 = all).
+  /// Serve the per-camera instance masks (EuRoC layout written by the simulator: camN/mask/ and
+  /// instances.csv); InputError at open when the dataset has none.
+  bool instance_masks = false;
 };
 
 /// Frames in time order. Throws InputError (from the readers, or on a missing stream) at open.

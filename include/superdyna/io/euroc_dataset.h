@@ -5,6 +5,9 @@
 //   mav0/cam1/...                                          right camera (optional: mono dataset)
 //   mav0/imu0/{sensor.yaml, data.csv}                      IMU (optional)
 //   mav0/state_groundtruth_estimate0/data.csv              ground truth of the body (optional)
+//   mav0/cam{0,1}/mask/<file name of the image>            16-bit instance ids per pixel, 0 =
+//                                                          background (optional, simulator)
+//   mav0/instances.csv                                     id,class,... per instance (optional)
 //
 // Everything is read and validated when the dataset is opened (images are only checked to exist);
 // bad input throws InputError naming the file, the line and the field. Oddities that do not stop
@@ -18,6 +21,8 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <map>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <span>
 #include <string>
@@ -36,6 +41,12 @@ struct ImuSample {
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   ///< Angular velocity, rad/s.
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();  ///< Specific force, m/s^2.
 };
+
+/// Semantic classes of instances.csv (rows "id,class,..."): class names and the ids they map to;
+/// the ids equal features::kClassBackground / kClassVehicle / kClassPedestrian.
+inline constexpr int kInstanceClassBackground = 0;  ///< "background"
+inline constexpr int kInstanceClassVehicle = 1;     ///< "vehicle"
+inline constexpr int kInstanceClassPedestrian = 2;  ///< "pedestrian"
 
 /// One ground-truth state of the body frame.
 struct GroundTruthState {
@@ -57,6 +68,15 @@ class EurocDataset {
   bool isStereo() const { return cam1_.has_value(); }
   bool hasImu() const { return imu_calibration_.has_value(); }
   bool hasGroundTruth() const { return !ground_truth_.empty(); }
+  /// Whether the sequence has per-camera instance masks and mav0/instances.csv (simulator).
+  bool hasInstanceMasks() const { return has_instance_masks_; }
+  /// Instance id -> semantic class (kInstanceClass*) from mav0/instances.csv; empty without it.
+  const std::map<int, int>& instanceClasses() const { return instance_classes_; }
+  /// The instance mask of an image of this dataset (`image` a path from monoFrames() or
+  /// stereoFrames()): mav0/camN/mask/<same file name>, CV_16UC1 of the image's size. Throws
+  /// InputError naming the mask file when it is missing, unreadable, of another size or type,
+  /// or holds an instance id that instances.csv does not list.
+  cv::Mat loadInstanceMask(const std::filesystem::path& image, cv::Size size) const;
 
   const CameraCalibration& cam0Calibration() const { return cam0_; }
   /// Empty for a mono dataset.
@@ -111,6 +131,8 @@ class EurocDataset {
   std::vector<ImuSample> imu_;
   std::vector<GroundTruthState> ground_truth_;
   bool ground_truth_full_state_ = false;
+  bool has_instance_masks_ = false;
+  std::map<int, int> instance_classes_;
   std::vector<std::string> warnings_;
 };
 

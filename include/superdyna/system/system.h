@@ -53,9 +53,9 @@ struct SystemOptions {
   void validate() const;
 };
 
-/// Reads a YAML options file (sections `orb`, `stereo`, `projection`, `pose`, `tracker`,
-/// `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError naming file
-/// and key.
+/// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
+/// `tracker`, `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError
+/// naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// CPU time each thread of the pipeline used [ms] (CPU, not wall-clock, time: meaningful on a
@@ -66,7 +66,16 @@ struct ThreadBusyTimes {
   double mapping_ms = 0.0;    ///< The mapping thread (concurrent only).
 };
 
-/// Sums of the per-stage times over the processed frames [ms].
+/// Match counts summed over the processed frames. Cross-class matches pair keypoints (or a map
+/// point and a keypoint) of different semantic classes; class-wise matching makes them 0.
+struct MatchCounts {
+  long stereo = 0;              ///< Left keypoints with a stereo partner.
+  long stereo_cross_class = 0;  ///< ... whose partner has another class_id.
+  long map = 0;                 ///< Map-to-frame matches (before pose-outlier rejection).
+  long map_cross_class = 0;     ///< ... between a map point and a keypoint of other classes.
+};
+
+/// Sums of the per-stage times over the processed frames [ms], and match counts.
 struct TimingSummary {
   std::size_t frames = 0;
   std::size_t keyframes = 0;
@@ -74,6 +83,7 @@ struct TimingSummary {
   tracking::StageTimes total;
   ThreadBusyTimes busy;
   double wall_s = 0.0;  ///< Wall-clock time of process() / run() calls, to the end of mapping.
+  MatchCounts matches;
   double meanMs(double total_ms) const { return frames > 0 ? total_ms / frames : 0.0; }
   double framesPerSecond() const { return wall_s > 0.0 ? frames / wall_s : 0.0; }
 };

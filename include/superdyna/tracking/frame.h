@@ -26,6 +26,8 @@ struct Frame {
   std::vector<io::ImuSample> imu;  ///< IMU samples bracketing (previous frame, t_ns].
   double extract_ms = 0.0;         ///< Time spent on feature extraction.
   double stereo_ms = 0.0;          ///< Time spent on stereo matching.
+  /// Stereo matches whose two keypoints carry different class_id (0 with class-wise matching).
+  int cross_class_stereo = 0;
 
   std::size_t size() const { return features.size(); }
   bool hasStereo(std::size_t i) const { return depth_m[i] > 0.0; }

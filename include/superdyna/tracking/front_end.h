@@ -3,11 +3,18 @@
 // feature extraction on the left image and, with a right camera, stereo matching that gives
 // keypoints a depth. It holds no map state, so it can run one frame ahead of tracking in its own
 // thread.
+//
+// The extractor is chosen by FeatureOptions (ORB, XFeat, SuperPoint); the stereo matcher follows
+// its descriptor type. When the bundle carries instance masks, every keypoint is labelled with the
+// instance under it and that instance's class (no mask: background, 0); with class-wise matching
+// the stereo matcher pairs only keypoints of one class. Keypoints on objects are kept: removing
+// dynamic ones is a later stage's decision.
 
+#include <memory>
 #include <optional>
 
 #include "superdyna/core/camera_model.h"
-#include "superdyna/features/orb_extractor.h"
+#include "superdyna/features/extractor_factory.h"
 #include "superdyna/features/stereo_matcher.h"
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/dataset_source.h"
@@ -16,14 +23,21 @@
 namespace superdyna::tracking {
 
 struct FrontEndOptions {
-  features::OrbOptions orb;             ///< Extractor of both cameras.
-  features::StereoMatchOptions stereo;  ///< Left-right matching.
+  features::FeatureOptions features;    ///< Extractor of both cameras, class-wise matching.
+  features::StereoMatchOptions stereo;  ///< Left-right matching (same_class_only follows
+                                        ///< features.class_wise_matching).
   void validate() const;
 };
 
+/// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,
+/// clamped to the mask) and its class from `masks`; an empty mask leaves them untouched.
+void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+                    std::vector<features::Keypoint>& keypoints);
+
 class FrontEnd {
  public:
-  /// Without cam1 the front end is monocular: frames carry no stereo depth.
+  /// Without cam1 the front end is monocular: frames carry no stereo depth. Throws InputError
+  /// when a learned extractor's model cannot be found.
   FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& cam0,
            const std::optional<io::CameraCalibration>& cam1);
 
@@ -31,12 +45,16 @@ class FrontEnd {
   Frame build(const io::FrameBundle& bundle);
 
   bool isStereo() const { return stereo_matcher_.has_value(); }
+  /// Scale pyramid of the extractor (map points and optimisation weights use it).
+  features::PyramidLayout pyramid() const { return pyramid_; }
+  const features::FeatureExtractor& extractor() const { return *left_extractor_; }
 
  private:
   void matchStereo(const features::FeatureSet& right, Frame& frame) const;
 
   CameraModel camera0_;
-  features::OrbExtractor left_extractor_, right_extractor_;
+  features::PyramidLayout pyramid_;
+  std::unique_ptr<features::FeatureExtractor> left_extractor_, right_extractor_;
   std::optional<features::StereoMatcher> stereo_matcher_;
 };
 

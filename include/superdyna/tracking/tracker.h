@@ -87,6 +87,7 @@ struct TrackingResult {
   SE3d T_w_b;  ///< Estimated (or, when lost, predicted) body pose.
   TrackingState state = TrackingState::kLost;
   int matches = 0;
+  int cross_class_matches = 0;  ///< Map-to-frame matches between different class_id.
   int inliers = 0;
   bool keyframe = false;
   /// Set when the world frame of the current map changed at this frame (inertial initialisation:

@@ -1,0 +1,62 @@
+#pragma once
+// Choice of the front end's feature extractor: ORB (binary descriptors, scale pyramid) or a
+// learned one (XFeat, SuperPoint: float descriptors, one full-resolution level), built from one
+// set of options.
+
+#include <memory>
+#include <string>
+
+#include "superdyna/features/feature_set.h"
+#include "superdyna/features/orb_extractor.h"
+
+namespace superdyna::features {
+
+enum class FeatureType { kOrb, kXFeat, kSuperPoint };
+
+/// "orb" | "xfeat" | "superpoint"; anything else is an OptionError naming `option`.
+FeatureType parseFeatureType(const std::string& name, const std::string& option = "features.type");
+std::string toString(FeatureType type);
+
+struct FeatureOptions {
+  FeatureType type = FeatureType::kOrb;
+  /// Network file of a learned extractor: a bare name is looked up by inference::findModel()
+  /// ($SUPERDYNA_MODEL_DIR, then the repository's models/), a path is used as given. Empty:
+  /// the type's default name (xfeat.onnx, superpoint.onnx). Unused by ORB.
+  std::string model;
+  OrbOptions orb;  ///< ORB: budget (orb.features), pyramid, FAST thresholds.
+  /// Learned extractors: keypoint budget (top-K), >= 1.
+  int max_keypoints = 1200;
+  /// Learned extractors: heat a keypoint needs, in [0, 1); negative = the extractor's default
+  /// (XFeat 0.05, SuperPoint 0.015).
+  double detection_threshold = -1.0;
+  /// Learned extractors: non-maximum suppression radius [px] (XFeat: window 2r+1, SuperPoint:
+  /// radius r); negative = the extractor's default (XFeat 2, SuperPoint 4). Learned descriptors
+  /// are sampled from a 1/8-resolution map, so keypoints closer than a cell (8 px) have nearly the
+  /// same descriptor: a larger radius keeps them apart for matching by projection.
+  int nms_radius_px = -1;
+  /// Learned extractors: spread the top-K over square cells of this side [px]; 0 = off.
+  int grid_cell_px = 0;
+  /// Learned extractors: ONNX Runtime intra-op threads, >= 1.
+  int inference_threads = 2;
+  /// Match keypoints (stereo, map-to-frame) only within one semantic class (Keypoint::class_id).
+  bool class_wise_matching = true;
+
+  /// The model name makeExtractor() loads for a learned type ("" for ORB).
+  std::string modelName() const;
+  /// Throws OptionError naming the first invalid field (features.*, orb.*).
+  void validate() const;
+};
+
+/// The scale pyramid an extractor's keypoints come from: ORB's levels; learned extractors detect
+/// on one full-resolution level (scale factor 1).
+struct PyramidLayout {
+  double scale_factor = 1.0;
+  int levels = 1;
+};
+PyramidLayout pyramidOf(const FeatureOptions& options);
+
+/// The extractor the options describe. A learned model that cannot be found throws InputError
+/// listing the folders searched and how to get the model.
+std::unique_ptr<FeatureExtractor> makeExtractor(const FeatureOptions& options);
+
+}  // namespace superdyna::features

@@ -1,0 +1,112 @@
+#include "superdyna/tracking/front_end.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <iostream>
+
+#include "superdyna/inference/model_files.h"
+#include "support/test_support.h"
+
+namespace superdyna::tracking {
+namespace {
+
+constexpr const char* kEuroc = "data/euroc/V1_01_easy_micro";
+
+TEST(LabelKeypoints, TakesInstanceAndClassFromTheMaskPixel) {
+  io::InstanceMasks masks;
+  masks.cam0 = cv::Mat(40, 60, CV_16UC1, cv::Scalar(0));
+  masks.cam0(cv::Rect(10, 5, 10, 10)).setTo(3);  // columns 10..19, rows 5..14
+  masks.class_of_instance = {{3, features::kClassPedestrian}};
+  std::vector<features::Keypoint> keypoints(4);
+  keypoints[0].pixel = {12.0, 7.0};
+  keypoints[1].pixel = {19.4, 14.4};   // rounds to (19, 14): inside
+  keypoints[2].pixel = {19.6, 7.0};    // rounds to column 20: outside
+  keypoints[3].pixel = {-3.0, 100.0};  // clamped to the border pixel (0, 39): background
+  labelKeypoints(masks.cam0, masks, keypoints);
+  EXPECT_EQ(keypoints[0].instance_id, 3);
+  EXPECT_EQ(keypoints[0].class_id, features::kClassPedestrian);
+  EXPECT_EQ(keypoints[1].instance_id, 3);
+  EXPECT_EQ(keypoints[2].instance_id, 0);
+  EXPECT_EQ(keypoints[2].class_id, features::kClassBackground);
+  EXPECT_EQ(keypoints[3].instance_id, 0);
+}
+
+/// The first stereo frame of the shared EuRoC excerpt.
+io::FrameBundle eurocFrame(const std::filesystem::path& path) {
+  io::DatasetSourceOptions options;
+  options.inertial = false;
+  options.max_frames = 1;
+  return *io::openDataset(io::DatasetKind::kEuroc, path, options)->next();
+}
+
+FrontEnd eurocFrontEnd(const std::filesystem::path& path, const FrontEndOptions& options) {
+  io::DatasetSourceOptions source_options;
+  source_options.inertial = false;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, path, source_options);
+  return FrontEnd(options, source->camera0(), source->camera1());
+}
+
+TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
+  SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
+  io::FrameBundle bundle = eurocFrame(path);
+  // A "vehicle" over the left half of cam0 only: its keypoints have background partners.
+  io::InstanceMasks masks;
+  masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));
+  masks.cam0.colRange(0, masks.cam0.cols / 2).setTo(1);
+  masks.cam1 = cv::Mat(bundle.image1.size(), CV_16UC1, cv::Scalar(0));
+  masks.class_of_instance = {{1, features::kClassVehicle}};
+  bundle.masks = masks;
+
+  FrontEndOptions options;
+  options.features.class_wise_matching = false;
+  const Frame blind = eurocFrontEnd(path, options).build(bundle);
+  options.features.class_wise_matching = true;
+  const Frame class_wise = eurocFrontEnd(path, options).build(bundle);
+  ASSERT_EQ(blind.size(), class_wise.size());
+  int on_vehicle = 0, stereo_on_vehicle = 0;
+  for (std::size_t i = 0; i < class_wise.size(); ++i) {
+    const features::Keypoint& k = class_wise.features.keypoints[i];
+    EXPECT_EQ(k.class_id, k.pixel.x() < 375.5 ? features::kClassVehicle : 0);
+    if (k.class_id != features::kClassVehicle) continue;
+    ++on_vehicle;
+    if (class_wise.hasStereo(i)) ++stereo_on_vehicle;
+  }
+  EXPECT_GT(on_vehicle, 300);
+  EXPECT_EQ(stereo_on_vehicle, 0);
+  EXPECT_EQ(class_wise.cross_class_stereo, 0);
+  EXPECT_GT(blind.cross_class_stereo, 100);
+  EXPECT_GT(class_wise.numStereo(), 100);
+}
+
+TEST(FrontEnd, XFeatFramesCarryFloatDescriptorsAndStereoDepth) {
+  SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
+  SUPERDYNA_REQUIRE_SHARED(model, "models/xfeat.onnx");
+  FrontEndOptions options;
+  options.features.type = features::FeatureType::kXFeat;
+  options.features.model = model.string();
+  FrontEnd front_end = eurocFrontEnd(path, options);
+  EXPECT_EQ(front_end.pyramid().levels, 1);
+  EXPECT_EQ(front_end.extractor().name(), "xfeat");
+  const Frame frame = front_end.build(eurocFrame(path));
+  EXPECT_EQ(frame.features.descriptor_type, features::DescriptorType::kFloat);
+  EXPECT_EQ(frame.size(), 1200u);
+  // V1_01 is a room a few metres across: stereo depths between 0.5 and 10 m.
+  std::vector<double> depths;
+  for (std::size_t i = 0; i < frame.size(); ++i)
+    if (frame.hasStereo(i)) depths.push_back(frame.depth_m[i]);
+  std::cout << "XFeat front end on EuRoC V1_01: " << depths.size() << " of " << frame.size()
+            << " keypoints with stereo depth\n";
+  EXPECT_GT(depths.size(), 400u);
+  std::sort(depths.begin(), depths.end());
+  const double median = depths[depths.size() / 2];
+  EXPECT_GT(median, 1.0);
+  EXPECT_LT(median, 6.0);
+  const auto implausible =
+      std::count_if(depths.begin(), depths.end(), [](double d) { return d < 0.5 || d > 10.0; });
+  EXPECT_LT(static_cast<double>(implausible), 0.05 * static_cast<double>(depths.size()));
+}
+
+}  // namespace
+}  // namespace superdyna::tracking
