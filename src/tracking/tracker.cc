@@ -315,7 +315,16 @@ void Tracker::initializeInertialIfDue(TrackingResult& result) {
 
 void Tracker::updateBiasFromMap() {
   if (inertial_inits_ == 0) return;
-  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) { bias_ = {kf.bg, kf.ba}; });
+  // Sequentially, local BA has just refined the newest keyframe. With a mapping thread its BA may
+  // still be queued (its biases are the ones this tracker gave it): take its predecessor, which
+  // local BA has most likely refined by now.
+  map::KeyFrameId source = reference_;
+  if (mapping_sink_) {
+    map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
+      if (kf.previous != map::kNoKeyFrame) source = kf.previous;
+    });
+  }
+  map_->readKeyFrame(source, [&](const map::KeyFrame& kf) { bias_ = {kf.bg, kf.ba}; });
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(

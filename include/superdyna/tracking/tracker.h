@@ -161,7 +161,7 @@ class Tracker {
   std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
   /// Stereo-inertial: runs the inertial (re-)initialisation of the map when it is due.
   void initializeInertialIfDue(TrackingResult& result);
-  /// After the inertial initialisation: the biases of the newest keyframe (as local BA left them).
+  /// After the inertial initialisation: the biases of the newest keyframe local BA has refined.
   void updateBiasFromMap();
   Prediction predictPose(const Frame& frame) const;
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
