@@ -46,16 +46,6 @@ void TrackerOptions::validate() const {
     throw OptionError("tracker.imu_rotation_prior_sigma_deg", "must be >= 0");
   }
   mono_init.validate();
-  if (!(inertial_init_after_s > 0.0)) {
-    throw OptionError("tracker.inertial_init_after_s", "must be > 0");
-  }
-  if (!(inertial_refine_after_s > inertial_init_after_s)) {
-    throw OptionError("tracker.inertial_refine_after_s", "must be > inertial_init_after_s");
-  }
-  if (!(inertial_final_refine_after_s > inertial_refine_after_s)) {
-    throw OptionError("tracker.inertial_final_refine_after_s", "must be > inertial_refine_after_s");
-  }
-  inertial_init.validate();
   imu_prior.validate();
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
     throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
@@ -190,7 +180,6 @@ TrackingResult Tracker::track(const Frame& frame) {
   if (imu_) imu_since_keyframe_.append(frame.imu);
   const Prediction prediction = predictPose(frame);
   result.T_w_b = prediction.T_w_b;
-  recordImu(frame);
   if (!has_map_ && isMonocular()) {
     initializeMono(frame, result);
     result.times.track_ms = millisecondsSince(start);
@@ -275,7 +264,6 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
   }
   initializeInertialIfDue(result);
-  alignInertialIfDue(result);
   updateBiasFromMap();
   result.times.local_ba_ms = millisecondsSince(start);
 }
@@ -293,7 +281,7 @@ void Tracker::waitForMapping() {
 }
 
 void Tracker::initializeInertialIfDue(TrackingResult& result) {
-  if (!imu_ || isMonocular()) return;  // mono-inertial: alignInertialIfDue
+  if (!imu_) return;
   const std::vector<map::KeyFrameId> ids = map_->keyFrameIds();
   TimeNs t_first = 0;
   map_->readKeyFrame(ids.front(), [&](const map::KeyFrame& kf) { t_first = kf.t_ns; });
@@ -305,10 +293,11 @@ void Tracker::initializeInertialIfDue(TrackingResult& result) {
   ++inertial_inits_;
   if (mapping.world_change) {
     result.world_change = mapping.world_change;
-    // The map moved into the gravity-aligned frame: so does the state kept here.
+    // The map moved into the gravity-aligned (monocular: also metric) frame: so does the state
+    // kept here, camera-centred like the map (System re-expresses earlier poses the same way).
     const Sim3d& T = *mapping.world_change;
-    T_w_b_last_ = T * T_w_b_last_;
-    velocity_w_ = T.R * velocity_w_;
+    T_w_b_last_ = mapping::transformBodyPose(T, T_w_b_last_, T_b_c0_);
+    velocity_w_ = T.s * (T.R * velocity_w_);
   }
   result.T_w_b = map_->keyFramePose(reference_).value_or(result.T_w_b);
 }
@@ -378,7 +367,6 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   if (map_->numKeyFrames() > 0) ++resets_;
   map_ = newMap();
   runMapping([this] { mapper_.reset(); });
-  inertial_stage_ = 0;
   inertial_inits_ = 0;
   bias_ = {};
   insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
@@ -471,7 +459,7 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
 
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
-  if (imu_ && !inertialInitialized() &&
+  if (imu_ && (isMonocular() || !inertialInitialized()) &&
       frame.t_ns - t_reference_ns_ < secondsToNs(options_.imu_min_keyframe_interval_s)) {
     return false;
   }

@@ -1,8 +1,7 @@
 // The monocular parts of the Tracker: two-view map initialisation, the motion model it leaves
-// behind, and (mono-inertial) the inertial scale / gravity estimation of the young map.
+// behind.
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include "superdyna/mapping/map_inertial_alignment.h"
@@ -51,10 +50,6 @@ bool Tracker::buildMonoMap(const MonoInitialization& init, const Frame& frame,
   result.T_w_b = map_->keyFramePose(second).value_or(T_w_b1);
   setMotionFromInitialization(map_->keyFramePose(first).value_or(T_w_b0), init.reference.t_ns,
                               result.T_w_b, frame.t_ns);
-  if (imu_) {  // keep the samples from just before the first keyframe on
-    const TimeNs keep_from = init.reference.t_ns - secondsToNs(0.5);
-    std::erase_if(imu_history_, [&](const io::ImuSample& s) { return s.t_ns < keep_from; });
-  }
   return true;
 }
 
@@ -93,37 +88,6 @@ void Tracker::setMotionFromInitialization(const SE3d& T_w_b0, TimeNs t0_ns, cons
   T_w_b_last_ = T_w_b1;
   t_last_ns_ = t1_ns;
   has_last_ = true;
-}
-
-void Tracker::recordImu(const Frame& frame) {
-  if (!imu_ || !isMonocular() || (has_map_ && inertial_stage_ >= 3)) return;
-  for (const io::ImuSample& s : frame.imu) {
-    if (imu_history_.empty() || s.t_ns > imu_history_.back().t_ns) imu_history_.push_back(s);
-  }
-}
-
-void Tracker::alignInertialIfDue(TrackingResult& result) {
-  if (!imu_ || !isMonocular() || inertial_stage_ >= 3) return;
-  const std::array<double, 3> due_s = {options_.inertial_init_after_s,
-                                       options_.inertial_refine_after_s,
-                                       options_.inertial_final_refine_after_s};
-  const std::vector<map::KeyFrameId> ids = map_->keyFrameIds();
-  const auto first = map_->keyFrame(ids.front()), last = map_->keyFrame(ids.back());
-  if (nsToSeconds(last->t_ns - first->t_ns) < due_s[static_cast<std::size_t>(inertial_stage_)]) {
-    return;
-  }
-  waitForMapping();  // the estimation and the change of the world need a quiet map
-  imu::InertialInitOptions options = options_.inertial_init;
-  options.estimate_scale = true;
-  const auto alignment =
-      mapping::alignMapWithInertial(*map_, imu_history_, *imu_, T_b_c0_, bias_, options);
-  if (!alignment) return;  // retried at the next keyframe
-  ++inertial_stage_;
-  bias_ = alignment->inertial.bias;
-  result.world_change = alignment->S_w_v;
-  result.T_w_b = map_->keyFramePose(ids.back()).value_or(result.T_w_b);
-  T_w_b_last_ = mapping::transformBodyPose(alignment->S_w_v, T_w_b_last_, T_b_c0_);
-  if (inertial_stage_ >= 3) imu_history_ = {};  // no further estimation on this map
 }
 
 }  // namespace superdyna::tracking

@@ -35,15 +35,5 @@ TEST(MapInertialAlignment, SimilarityKeepsEveryReprojection) {
   EXPECT_LT((transformBodyPose(S, kf.T_w_b, T_b_c).t - T_w_b.t).norm(), 1e-12);
 }
 
-TEST(MapInertialAlignment, TooFewKeyFramesLeaveTheMapAlone) {
-  map::Map map;
-  map::KeyFrame kf;
-  kf.T_w_b = SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0));
-  const map::KeyFrameId id = map.addKeyFrame(kf);
-  const std::vector<io::ImuSample> samples(3);
-  EXPECT_FALSE(alignMapWithInertial(map, samples, io::ImuCalibration{}, SE3d(), imu::Bias{}, {}));
-  EXPECT_EQ(map.keyFramePose(id)->t, Eigen::Vector3d(1, 0, 0));
-}
-
 }  // namespace
 }  // namespace superdyna::mapping

@@ -1,20 +1,20 @@
 #pragma once
 // Local mapping, run sequentially after each new keyframe.
 //
-// Visual (stereo, or stereo-inertial before the inertial initialisation): local bundle
+// Visual (stereo or mono, or with IMU before the inertial initialisation): local bundle
 // adjustment with Ceres over the newest keyframe and its best covisible keyframes (the oldest of
 // the window fixed).
-// Stereo-inertial: once the map holds enough keyframes over a long enough time, the inertial
+// With IMU: once the map holds enough keyframes over a long enough time, the inertial
 // initialisation (inertial_map_initializer.h) aligns the map with gravity and estimates velocities
-// and biases, followed by a full visual-inertial BA; it is refined (initialisation with relaxed
-// bias priors + full BA) when the map is refine_first_s and refine_second_s old. From then on the
-// local BA is visual-inertial (ORB-SLAM3): the newest inertial_window_keyframes keyframes of the
-// temporal chain are optimised (pose, velocity, biases) with preintegration and bias random walk
-// factors between consecutive ones; the keyframe before them is fixed with its velocity and
-// biases; up to inertial_fixed_covisible best covisible keyframes outside the window add their
-// observations with fixed poses.
-// Then: removal of outlier observations, culling of recent map points that too few keyframes
-// observe, and culling of redundant keyframes (keyframe_culling.h).
+// and biases (monocular rigs: the map scale too), followed by a full visual-inertial BA; it is
+// refined (initialisation with relaxed bias priors + full BA) when the map is refine_first_s and
+// refine_second_s old. From then on the local BA is visual-inertial (ORB-SLAM3): the newest
+// inertial_window_keyframes keyframes of the temporal chain are optimised (pose, velocity, biases)
+// with preintegration and bias random walk factors between consecutive ones; the keyframe before
+// them is fixed with its velocity and biases; up to inertial_fixed_covisible best covisible
+// keyframes outside the window add their observations with fixed poses. Then: removal of outlier
+// observations, culling of recent map points that too few keyframes observe, and culling of
+// redundant keyframes (keyframe_culling.h).
 
 #include <Eigen/Core>
 #include <map>
@@ -52,7 +52,7 @@ struct LocalMapperOptions {
 
   // ---- With IMU ----
   bool inertial = true;                  ///< Run the inertial initialisation and VI BA (with IMU).
-  InertialMapInitOptions inertial_init;  ///< First initialisation (scale fixed for stereo).
+  InertialMapInitOptions inertial_init;  ///< First initialisation (scale: estimated for mono).
   double refine_first_s = 5.0;           ///< Map age of the first refinement [s], > 0 (0 = none).
   double refine_second_s = 15.0;         ///< ... of the second, > refine_first_s (0 = none).
   int full_ba_iterations = 20;  ///< Iterations of the full VI BA after an initialisation, >= 1.
@@ -75,7 +75,7 @@ struct LocalMappingResult {
 class LocalMapper {
  public:
   /// cameras[0] = left, cameras[1] = right (optional) of the rig, in the body frame. `imu`: the
-  /// IMU of a stereo-inertial rig (enables the inertial stages when options.inertial).
+  /// IMU of the rig (enables the inertial stages when options.inertial).
   LocalMapper(const LocalMapperOptions& options, std::vector<optim::ReprojectionCamera> cameras,
               const std::optional<io::ImuCalibration>& imu = std::nullopt);
 
@@ -111,6 +111,9 @@ class LocalMapper {
   BundleAdjustmentResult fullInertialBundleAdjust(map::Map& map, double bias_sigma_gyro,
                                                   double bias_sigma_acc);
   void cullRecentPoints(map::Map& map, map::KeyFrameId newest);
+  /// Monocular: after the world was scaled by `scale`, places the bodies so that the cameras
+  /// (T_w_b * T_b_c) are where the scaled points expect them (mapping::transformBodyPose).
+  void keepCamerasOnPoints(map::Map& map, double scale) const;
   double mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const;
 
   LocalMapperOptions options_;

@@ -10,10 +10,11 @@
 // than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
 //
 // Monocular rigs (no cam1) start each map by two-view initialisation (mono_initializer.h) and get
-// new points only from the local mapper's triangulation. With an IMU (mono-inertial) the map is
-// scaled and gravity-aligned by inertial-only estimation once its keyframes span
-// inertial_init_after_s, and re-estimated at the two refinement times; until then the IMU only
-// predicts rotations.
+// new points only from the local mapper's triangulation. With an IMU (mono-inertial) the local
+// mapper's inertial initialisation (as for stereo-inertial, with the scale estimated too) makes the
+// map metric and gravity-aligned; until then the IMU only predicts rotations. Keyframes of a
+// monocular-inertial map are always at least imu_min_keyframe_interval_s apart (ORB-SLAM3 inserts
+// them every 0.25-0.5 s): more frequent ones add little parallax and cost local BA time.
 
 #include <Eigen/Core>
 #include <functional>
@@ -25,7 +26,6 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/features/matcher.h"
-#include "superdyna/imu/inertial_initialization.h"
 #include "superdyna/imu/preintegration.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/map/map.h"
@@ -57,15 +57,10 @@ struct TrackerOptions {
   /// the inertial initialisation; after it the full pose prior of `imu_prior` applies.
   double imu_rotation_prior_sigma_deg = 0.0;
   MonoInitializerOptions mono_init;  ///< Two-view initialisation of monocular maps.
-  /// Mono-inertial: keyframe time span [s] of the map at the inertial initialisation and at its two
-  /// refinements; increasing, > 0.
-  double inertial_init_after_s = 2.0;
-  double inertial_refine_after_s = 5.0;
-  double inertial_final_refine_after_s = 15.0;
-  imu::InertialInitOptions inertial_init;  ///< Mono-inertial scale / gravity / bias estimation.
-  /// With IMU, before the inertial initialisation: no new keyframe sooner than this after the
-  /// previous one [s], >= 0 (ORB-SLAM3: 0.25 s). Very short keyframe gaps have near-zero
-  /// preintegration covariance, so the visual pose noise would dominate the initialisation.
+  /// With IMU, before the inertial initialisation (monocular: always): no new keyframe sooner than
+  /// this after the previous one [s], >= 0 (ORB-SLAM3: 0.25 s). Very short keyframe gaps have
+  /// near-zero preintegration covariance, so the visual pose noise would dominate the
+  /// initialisation.
   double imu_min_keyframe_interval_s = 0.25;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
@@ -135,7 +130,7 @@ class Tracker {
   const map::Map& map() const { return *map_; }
   bool hasMap() const { return map_ != nullptr; }
   /// The inertial initialisation has been applied to the current map.
-  bool inertialInitialized() const { return inertial_inits_ > 0 || inertial_stage_ > 0; }
+  bool inertialInitialized() const { return inertial_inits_ > 0; }
   int resets() const { return resets_; }
   bool isMonocular() const { return cameras_.size() == 1; }
   /// The left camera's pose in the body frame.
@@ -159,7 +154,7 @@ class Tracker {
     std::optional<InertialPrediction> inertial;
   };
   std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
-  /// Stereo-inertial: runs the inertial (re-)initialisation of the map when it is due.
+  /// With IMU: runs the local mapper's inertial (re-)initialisation of the map when it is due.
   void initializeInertialIfDue(TrackingResult& result);
   /// After the inertial initialisation: the biases of the newest keyframe local BA has refined.
   void updateBiasFromMap();
@@ -168,14 +163,12 @@ class Tracker {
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
   SE3d initialPose(const Frame& frame, const SE3d& predicted) const;
   SE3d gravityAlignedPose(const Frame& frame) const;
-  bool inertialReady() const { return !isMonocular() || inertial_stage_ > 0; }
+  bool inertialReady() const { return !isMonocular() || inertial_inits_ > 0; }
   void initializeMono(const Frame& frame, TrackingResult& result);
   bool buildMonoMap(const MonoInitialization& init, const Frame& frame, TrackingResult& result);
   void setMotionFromInitialization(const SE3d& T_w_b0, TimeNs t0_ns, const SE3d& T_w_b1,
                                    TimeNs t1_ns);
   void normalizeMonoScale(map::KeyFrameId first);
-  void recordImu(const Frame& frame);
-  void alignInertialIfDue(TrackingResult& result);
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
   std::unique_ptr<map::Map> newMap() const;
   void startMap(const Frame& frame, const SE3d& T_w_b);
@@ -232,9 +225,7 @@ class Tracker {
   int resets_ = 0;
 
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
-  std::vector<io::ImuSample> imu_history_;           ///< Mono-inertial: samples of the current map.
-  int inertial_stage_ = 0;  ///< Mono-inertial: inertial estimations done on the current map.
-  int inertial_inits_ = 0;  ///< Stereo-inertial: inertial (re-)initialisations of the current map.
+  int inertial_inits_ = 0;  ///< Inertial (re-)initialisations of the current map.
 };
 
 }  // namespace superdyna::tracking
