@@ -189,11 +189,6 @@ class RunCommand : public Command {
     source_options.max_frames = max_frames_;
     source_options.instance_masks = instance_masks_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
-    if (!source_options.stereo || !source->camera1()) {
-      if (!system::isMonocular(options.mode)) {
-        throw OptionError("--mode", "stereo modes need a second camera");
-      }
-    }
     system::System slam(options, source->camera0(), source->camera1(), source->imu());
 
     fmt::print("running {} SLAM with {} features ({}) on {} ({} frames)\n",

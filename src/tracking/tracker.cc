@@ -135,7 +135,8 @@ SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
 }
 
 std::optional<InertialPrediction> Tracker::predictInertial(const Frame& frame) const {
-  if (!imu_ || !has_map_ || !mapper_.inertialInitialized()) return std::nullopt;
+  // The tracker's own count, not the mapper's: the mapper's state belongs to the mapping thread.
+  if (!imu_ || !has_map_ || !inertialInitialized()) return std::nullopt;
   std::optional<InertialPrediction> prediction;
   map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
     prediction = predictFromKeyFrame(kf, imu_since_keyframe_.samples(), frame.t_ns, imu_->T_b_i,
