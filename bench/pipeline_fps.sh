@@ -7,7 +7,8 @@
 # Usage: bench/pipeline_fps.sh [CACHE_DIR=${XDG_CACHE_HOME:-$HOME/.cache}/superdyna_bench]
 #                              [DURATION_S=30] [SEED=3]
 # Environment: SUPERDYNA (the binary, default build/bin/superdyna), MODES (default
-# "deterministic concurrent").
+# "deterministic concurrent"), CONFIG (default configs/euroc_stereo_inertial.yaml; e.g.
+# configs/euroc_stereo_inertial_xfeat.yaml with SUPERDYNA_MODEL_DIR set for the XFeat pipeline).
 #
 # Wall-clock FPS depends on what else runs on the machine; the "CPU-bound FPS" columns estimate the
 # rate on otherwise idle cores from CPU times: sequential = frames / CPU s; concurrent on 2 cores =
@@ -19,6 +20,7 @@ cache=${1:-${XDG_CACHE_HOME:-$HOME/.cache}/superdyna_bench}
 duration=${2:-30}
 seed=${3:-3}
 modes=${MODES:-deterministic concurrent}
+config=${CONFIG:-$repo/configs/euroc_stereo_inertial.yaml}
 seq=$cache/fps_indoor_mh03_${duration}s_seed$seed
 trajectory=${SUPERDYNA_SHARED_DIR:-$repo/../shared}/data/trajectories/euroc/MH_03_medium.txt
 if [ ! -f "$seq/simulation.yaml" ]; then
@@ -38,7 +40,7 @@ for mode in $modes; do
   [ "$mode" = deterministic ] && flag=(--deterministic)
   log=$out/$mode.log
   "$superdyna" run --dataset euroc --path "$seq" --mode stereo-inertial \
-    --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$out/$mode.txt" "${flag[@]}" \
+    --config "$config" --output "$out/$mode.txt" "${flag[@]}" \
     >"$log" 2>&1 || { echo "$mode run failed, see $log" >&2; exit 1; }
   awk -v mode="$mode" '
     /^[0-9]+ frames in/ { frames = $1; fps = $6; gsub(/[(]/, "", fps) }
@@ -65,4 +67,5 @@ for mode in $modes; do
                  mode, frames, fps, bound, ex, st, tr, ba, fe, tk, mp, ate }' "$log"
 done
 echo
+echo "config $config"
 echo "sequence $seq; logs in $out; $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"
