@@ -5,7 +5,9 @@
 #
 # Usage: scripts/setup.sh [TARGET...]   (default: every target, tests included)
 # Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default nproc),
-#              SUPERDYNA_WERROR=ON to turn warnings into errors (CI does).
+#              SUPERDYNA_WERROR=ON|OFF: warnings as errors (CI: ON). Unset, a configured
+#              build keeps its setting (so quickstart then tests do not rebuild everything)
+#              and a new one starts with OFF.
 set -euo pipefail
 
 repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -60,8 +62,9 @@ install_dependencies() {
 
 configure_and_build() {
   echo "[setup] configuring $build_dir ($build_type)"
-  cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" \
-    -DSUPERDYNA_WERROR="${SUPERDYNA_WERROR:-OFF}" >/dev/null
+  local werror=()
+  [ -n "${SUPERDYNA_WERROR:-}" ] && werror=(-DSUPERDYNA_WERROR="$SUPERDYNA_WERROR")
+  cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE="$build_type" "${werror[@]}" >/dev/null
   echo "[setup] building with $jobs jobs"
   # Targets given as arguments (e.g. `setup.sh superdyna`) build only those; none builds all.
   local targets=()
