@@ -3,6 +3,8 @@
 // the command line is parsed. Library errors (InputError, OptionError) propagate to main().
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
+#include <string>
 
 namespace superdyna::apps {
 
@@ -14,5 +16,16 @@ class Command {
   /// Runs the command; returns the process exit code.
   virtual int run() = 0;
 };
+
+/// Declares `--dataset euroc|kitti` (into `kind`) and the required `--path DIR` (into `path`), the
+/// options of every command that reads a sequence.
+inline void addDatasetOptions(CLI::App& sub, std::string& kind, std::filesystem::path& path) {
+  sub.add_option("--dataset", kind, "Dataset layout")
+      ->check(CLI::IsMember({"euroc", "kitti"}))
+      ->capture_default_str();
+  sub.add_option("--path", path, "Sequence folder (EuRoC: the one holding mav0/)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+}
 
 }  // namespace superdyna::apps

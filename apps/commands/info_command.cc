@@ -73,12 +73,7 @@ class InfoCommand : public Command {
   explicit InfoCommand(CLI::App& app) {
     sub_ = app.add_subcommand(
         "info", "Read and validate a dataset folder and summarise its streams and calibration");
-    sub_->add_option("--dataset", kind_, "Dataset layout")
-        ->check(CLI::IsMember({"euroc", "kitti"}))
-        ->capture_default_str();
-    sub_->add_option("--path", path_, "Sequence folder (EuRoC: the one holding mav0/)")
-        ->required()
-        ->check(CLI::ExistingDirectory);
+    addDatasetOptions(*sub_, kind_, path_);
   }
 
   CLI::App* subcommand() const override { return sub_; }

@@ -107,12 +107,7 @@ class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
     sub_ = app.add_subcommand("run", "Run SLAM over a dataset and write the trajectory");
-    sub_->add_option("--dataset", kind_, "Dataset layout")
-        ->check(CLI::IsMember({"euroc", "kitti"}))
-        ->capture_default_str();
-    sub_->add_option("--path", path_, "Sequence folder (EuRoC: the one holding mav0/)")
-        ->required()
-        ->check(CLI::ExistingDirectory);
+    addDatasetOptions(*sub_, kind_, path_);
     sub_->add_option("--mode", mode_,
                      "Sensor mode: stereo | stereo-inertial | mono | mono-inertial")
         ->capture_default_str();
