@@ -291,17 +291,19 @@ bool Map::setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
   return true;
 }
 
-void Map::transformWorld(const Sim3d& T_new_old) {
+void Map::transformWorld(const Sim3d& S_new_old) {
   const std::lock_guard lock(mutex_);
+  const SE3d& T_b_c = options_.T_b_c.front();
+  const SE3d T_c_b = T_b_c.inverse();
   for (auto& [id, keyframe] : keyframes_) {
-    keyframe.T_w_b = T_new_old * keyframe.T_w_b;
-    keyframe.v_w = T_new_old.R * keyframe.v_w;
+    keyframe.T_w_b = (S_new_old * (keyframe.T_w_b * T_b_c)) * T_c_b;
+    keyframe.v_w = S_new_old.s * (S_new_old.R * keyframe.v_w);
   }
   for (auto& [id, point] : points_) {
-    point.p_w = T_new_old * point.p_w;
-    point.normal_w = T_new_old.R * point.normal_w;
-    point.min_distance_m *= T_new_old.s;
-    point.max_distance_m *= T_new_old.s;
+    point.p_w = S_new_old * point.p_w;
+    point.normal_w = S_new_old.R * point.normal_w;
+    point.min_distance_m *= S_new_old.s;
+    point.max_distance_m *= S_new_old.s;
   }
 }
 

@@ -208,7 +208,6 @@ LocalMappingResult LocalMapper::initializeInertialIfDue(map::Map& map, map::KeyF
   const InertialMapInitResult applied =
       initializeInertialMap(map, imu_->T_b_i, preintegrations_->noise(), init);
   if (!applied.applied) return result;
-  if (init.estimate_scale) keepCamerasOnPoints(map, applied.T_new_old.s);
   preintegrations_->clear();  // the biases changed everywhere
   ++initializations_;
   result.inertial_initialization = true;
@@ -218,18 +217,6 @@ LocalMappingResult LocalMapper::initializeInertialIfDue(map::Map& map, map::KeyF
   result.observations += ba.observations;
   result.imu_edges += ba.imu_edges;
   return result;
-}
-
-void LocalMapper::keepCamerasOnPoints(map::Map& map, double scale) const {
-  // Map::transformWorld scaled the body positions; the points scaled with the cameras, whose
-  // offset from the body (T_b_c, metric) must not scale: shift each body by (s - 1) R t_b_c.
-  const Eigen::Vector3d t_b_c = cameras_.front().T_b_c.t;
-  for (const map::KeyFrameId id : map.keyFrameIds()) {
-    SE3d T_w_b;
-    map.readKeyFrame(id, [&](const map::KeyFrame& kf) { T_w_b = kf.T_w_b; });
-    T_w_b.t += (scale - 1.0) * (T_w_b.rotation() * t_b_c);
-    map.setKeyFramePose(id, T_w_b);
-  }
 }
 
 void LocalMapper::cullRecentPoints(map::Map& map, map::KeyFrameId newest) {

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "superdyna/mapping/map_inertial_alignment.h"
 #include "superdyna/tracking/tracker.h"
 
 namespace superdyna::tracking {
@@ -71,7 +70,7 @@ void Tracker::normalizeMonoScale(map::KeyFrameId first) {
   Sim3d S;
   S.s = 1.0 / *middle;
   S.t = T_w_c0.t - S.s * T_w_c0.t;
-  mapping::transformMap(*map_, S, T_b_c0_);
+  map_->transformWorld(S);
 }
 
 void Tracker::setMotionFromInitialization(const SE3d& T_w_b0, TimeNs t0_ns, const SE3d& T_w_b1,

@@ -5,7 +5,7 @@
 namespace superdyna::mapping {
 namespace {
 
-TEST(MapInertialAlignment, SimilarityKeepsEveryReprojection) {
+TEST(MapInertialAlignment, WorldSimilarityKeepsEveryReprojection) {
   // A camera offset from the body, as on a MAV: the similarity must act on the camera.
   const SE3d T_b_c(expSO3(Eigen::Vector3d(0.1, -1.5, 0.2)), Eigen::Vector3d(-0.02, 0.06, 0.01));
   map::MapOptions options;
@@ -26,7 +26,7 @@ TEST(MapInertialAlignment, SimilarityKeepsEveryReprojection) {
   S.s = 3.5;
   S.R = expSO3(Eigen::Vector3d(0.2, -0.4, 1.0));
   S.t = Eigen::Vector3d(-1, 0.5, 2);
-  transformMap(map, S, T_b_c);
+  map.transformWorld(S);
   const SE3d T_w_b = *map.keyFramePose(id);
   const Eigen::Vector3d after = (T_w_b * T_b_c).inverse() * *map.mapPointPosition(p);
   EXPECT_LT((after - S.s * before).norm(), 1e-9);  // same direction, scaled depth

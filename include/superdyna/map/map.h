@@ -121,11 +121,14 @@ class Map {
   bool setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
                                 const Eigen::Vector3d& bg, const Eigen::Vector3d& ba);
   bool setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w);
-  /// Moves the whole map by the similarity p -> s R p + t (e.g. the gravity alignment and scale of
-  /// the inertial initialisation): keyframe poses (rotation R R_w_b, position s R p + t), map
-  /// points, their normals and distance ranges (times s); velocities are rotated (v -> R v, not
-  /// scaled: after an inertial initialisation they are metric already and set separately).
-  void transformWorld(const Sim3d& T_new_old);
+  /// Moves the whole map by the similarity S_new_old: p -> s R p + t (the gravity alignment and
+  /// scale of the inertial initialisation, a monocular map's scale normalisation). It acts on the
+  /// cameras, not the bodies: the visual map may be at any scale but the camera-to-body offset
+  /// (options().T_b_c[0]) is metric, so each body pose follows its camera's transformed pose,
+  /// T_w_b' = S (T_w_b T_b_c) T_c_b, which keeps every reprojection unchanged up to the depth
+  /// scale. Map points move; normals rotate; distance ranges and velocities scale by s (velocities
+  /// also rotate).
+  void transformWorld(const Sim3d& S_new_old);
   /// Stores a copy (clone) of one descriptor row.
   bool setMapPointDescriptor(MapPointId id, const cv::Mat& descriptor);
   /// Sets the point's descriptor to its most representative observation, as ORB-SLAM does: of

@@ -111,9 +111,6 @@ class LocalMapper {
   BundleAdjustmentResult fullInertialBundleAdjust(map::Map& map, double bias_sigma_gyro,
                                                   double bias_sigma_acc);
   void cullRecentPoints(map::Map& map, map::KeyFrameId newest);
-  /// Monocular: after the world was scaled by `scale`, places the bodies so that the cameras
-  /// (T_w_b * T_b_c) are where the scaled points expect them (mapping::transformBodyPose).
-  void keepCamerasOnPoints(map::Map& map, double scale) const;
   double mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const;
 
   LocalMapperOptions options_;
