@@ -93,6 +93,35 @@ fs::path xfeatModel() {
          "xfeat.onnx";
 }
 
+/// One image with ONNX Runtime configured by the arguments (intra-op threads, spinning 0/1):
+/// process CPU time (all threads), and the mean network and decoding [ms] per call as counters.
+void BM_XFeatExtractRuntime(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  if (!fs::exists(xfeatModel())) {
+    return state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
+  }
+  features::XFeatOptions options;
+  options.model = xfeatModel().string();
+  options.runtime.intra_op_threads = static_cast<int>(state.range(0));
+  options.runtime.allow_spinning = state.range(1) != 0;
+  features::XFeatExtractor extractor(options);
+  double network_ms = 0.0, total_ms = 0.0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
+    network_ms += extractor.lastInferenceMs();
+    total_ms += extractor.lastExtractMs();
+  }
+  const auto runs = static_cast<double>(state.iterations());
+  state.counters["network_ms"] = network_ms / runs;
+  state.counters["decode_ms"] = (total_ms - network_ms) / runs;
+}
+BENCHMARK(BM_XFeatExtractRuntime)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "spin"})
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
+
 void BM_XFeatStereoPair(benchmark::State& state) {
   const auto& sample = stereoSample();
   if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");

@@ -11,29 +11,64 @@
 
 namespace superdyna::features {
 
-cv::Mat cellLogitsToHeatmap(const DenseMap& logits, int cell) {
+namespace {
+
+/// Whether no pixel of a cell can have heat above `min_heat`, from the cell's largest pixel logit
+/// and its dustbin logit: the heat of pixel c is e^l_c / sum_k e^l_k <= e^l_c / (e^l_c +
+/// e^l_dustbin) = sigmoid(l_c - l_dustbin). `max_gap` = logit(min_heat) less a margin that keeps
+/// rounding in the softmax from mattering.
+bool cellIsBelowHeat(float max_pixel_logit, float dustbin_logit, float max_gap) {
+  return max_pixel_logit - dustbin_logit < max_gap;
+}
+
+/// Softmax of one cell's logits into its cell x cell block of `heatmap`, dustbin dropped.
+void writeCellHeat(const DenseMap& logits, int i, int j, int cell, float max_logit,
+                   std::vector<float>& e, cv::Mat& heatmap) {
+  float sum = 0.0f;
+  for (int c = 0; c < logits.channels; ++c) {
+    e[static_cast<std::size_t>(c)] = std::exp(logits.at(c, i, j) - max_logit);
+    sum += e[static_cast<std::size_t>(c)];
+  }
+  for (int r = 0; r < cell; ++r) {
+    float* row = heatmap.ptr<float>(i * cell + r) + j * cell;
+    for (int col = 0; col < cell; ++col)
+      row[col] = e[static_cast<std::size_t>(r * cell + col)] / sum;
+  }
+}
+
+}  // namespace
+
+cv::Mat cellLogitsToHeatmap(const DenseMap& logits, int cell, float min_heat) {
   if (cell < 1 || logits.channels != cell * cell + 1) {
     throw InputError(
         fmt::format("keypoint logits have {} channels, expected {} ({}x{} cell + "
                     "dustbin)",
                     logits.channels, cell * cell + 1, cell, cell));
   }
-  cv::Mat heatmap(logits.rows * cell, logits.cols * cell, CV_32FC1);
+  const int pixels = cell * cell;  // channel `pixels` is the dustbin
+  const bool skip_cold = min_heat > 0.0f;
+  // 1e-3 in log space: far above float rounding in the softmax, far below any real margin.
+  const float max_gap =
+      skip_cold ? static_cast<float>(std::log(min_heat / (1.0 - min_heat))) - 1e-3f : 0.0f;
+  cv::Mat heatmap(logits.rows * cell, logits.cols * cell, CV_32FC1, cv::Scalar(0.0f));
   std::vector<float> e(static_cast<std::size_t>(logits.channels));
+  // Per row of cells, channel by channel: the logits of one channel are contiguous along a row.
+  std::vector<float> max_pixel(static_cast<std::size_t>(logits.cols));
+  const std::size_t plane = static_cast<std::size_t>(logits.rows) * logits.cols;
   for (int i = 0; i < logits.rows; ++i) {
+    const float* row0 = logits.data + static_cast<std::size_t>(i) * logits.cols;
+    std::fill(max_pixel.begin(), max_pixel.end(), -std::numeric_limits<float>::infinity());
+    for (int c = 0; c < pixels; ++c) {
+      const float* row = row0 + static_cast<std::size_t>(c) * plane;
+      for (int j = 0; j < logits.cols; ++j)
+        max_pixel[static_cast<std::size_t>(j)] =
+            std::max(max_pixel[static_cast<std::size_t>(j)], row[j]);
+    }
+    const float* dustbin = row0 + static_cast<std::size_t>(pixels) * plane;
     for (int j = 0; j < logits.cols; ++j) {
-      float max_logit = -std::numeric_limits<float>::infinity();
-      for (int c = 0; c < logits.channels; ++c)
-        max_logit = std::max(max_logit, logits.at(c, i, j));
-      float sum = 0.0f;
-      for (int c = 0; c < logits.channels; ++c) {
-        e[static_cast<std::size_t>(c)] = std::exp(logits.at(c, i, j) - max_logit);
-        sum += e[static_cast<std::size_t>(c)];
-      }
-      for (int c = 0; c < cell * cell; ++c) {
-        heatmap.at<float>(i * cell + c / cell, j * cell + c % cell) =
-            e[static_cast<std::size_t>(c)] / sum;
-      }
+      const float max_pixel_logit = max_pixel[static_cast<std::size_t>(j)];
+      if (skip_cold && cellIsBelowHeat(max_pixel_logit, dustbin[j], max_gap)) continue;
+      writeCellHeat(logits, i, j, cell, std::max(max_pixel_logit, dustbin[j]), e, heatmap);
     }
   }
   return heatmap;
@@ -44,18 +79,27 @@ std::vector<ScoredPixel> localMaxima(const cv::Mat& heatmap, int window, float t
     throw OptionError("nms_window", fmt::format("must be odd and >= 1, got {}", window));
   }
   CV_Assert(heatmap.type() == CV_32FC1);
-  // OpenCV filters read beyond a submatrix's edge into its parent: work on a copy then.
-  const cv::Mat own = heatmap.isSubmatrix() ? heatmap.clone() : heatmap;
-  cv::Mat pooled;
-  // Dilation is an exact maximum; outside the image it uses -inf (max-pool padding).
-  cv::dilate(own, pooled, cv::getStructuringElement(cv::MORPH_RECT, {window, window}),
-             cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::morphologyDefaultBorderValue());
+  // Only pixels above the threshold can be kept, and few are: compare those with their window
+  // (clipped to the heatmap, as a max-pool with -inf padding) instead of max-pooling everything.
+  const int half = window / 2;
   std::vector<ScoredPixel> points;
-  for (int y = 0; y < own.rows; ++y) {
-    const float* h = own.ptr<float>(y);
-    const float* m = pooled.ptr<float>(y);
-    for (int x = 0; x < own.cols; ++x) {
-      if (h[x] > threshold && h[x] == m[x]) points.push_back({x, y, h[x]});
+  for (int y = 0; y < heatmap.rows; ++y) {
+    const float* h = heatmap.ptr<float>(y);
+    const int y0 = std::max(0, y - half), y1 = std::min(heatmap.rows - 1, y + half);
+    for (int x = 0; x < heatmap.cols; ++x) {
+      if (!(h[x] > threshold)) continue;
+      const int x0 = std::max(0, x - half), x1 = std::min(heatmap.cols - 1, x + half);
+      bool is_max = true;
+      for (int v = y0; v <= y1 && is_max; ++v) {
+        const float* n = heatmap.ptr<float>(v);
+        for (int u = x0; u <= x1; ++u) {
+          if (n[u] > h[x]) {
+            is_max = false;
+            break;
+          }
+        }
+      }
+      if (is_max) points.push_back({x, y, h[x]});
     }
   }
   return points;
@@ -73,12 +117,19 @@ std::vector<ScoredPixel> pixelsAtLeast(const cv::Mat& heatmap, float threshold) 
   return points;
 }
 
+namespace {
+
+/// sortByScore()'s order: a strict total order on pixels with distinct coordinates.
+bool scoresBefore(const ScoredPixel& a, const ScoredPixel& b) {
+  if (a.score != b.score) return a.score > b.score;
+  if (a.y != b.y) return a.y < b.y;
+  return a.x < b.x;
+}
+
+}  // namespace
+
 void sortByScore(std::vector<ScoredPixel>& points) {
-  std::sort(points.begin(), points.end(), [](const ScoredPixel& a, const ScoredPixel& b) {
-    if (a.score != b.score) return a.score > b.score;
-    if (a.y != b.y) return a.y < b.y;
-    return a.x < b.x;
-  });
+  std::sort(points.begin(), points.end(), scoresBefore);
 }
 
 std::vector<ScoredPixel> suppressNonMaxima(std::vector<ScoredPixel> candidates, int radius,
@@ -116,12 +167,14 @@ std::vector<ScoredPixel> keepInside(const std::vector<ScoredPixel>& points, int 
 }
 
 std::vector<ScoredPixel> selectTopK(std::vector<ScoredPixel> points, int k, int grid_cell_px) {
-  sortByScore(points);
-  if (k <= 0 || static_cast<int>(points.size()) <= k) return points;
-  if (grid_cell_px <= 0) {
+  if (grid_cell_px <= 0 && k > 0 && static_cast<int>(points.size()) > k) {
+    // The order is total, so the k first of a partial sort are those of a full sort.
+    std::partial_sort(points.begin(), points.begin() + k, points.end(), scoresBefore);
     points.resize(static_cast<std::size_t>(k));
     return points;
   }
+  sortByScore(points);
+  if (k <= 0 || static_cast<int>(points.size()) <= k) return points;
   // Rank of each point within its grid cell, in score order.
   int max_x = 0, max_y = 0;
   for (const auto& p : points) {
@@ -191,18 +244,22 @@ cv::Mat sampleDescriptors(const DenseMap& map, const std::vector<Eigen::Vector2d
 std::vector<float> normalizeCells(const DenseMap& map) {
   const std::size_t plane = static_cast<std::size_t>(map.rows) * map.cols;
   std::vector<float> out(map.data, map.data + plane * static_cast<std::size_t>(map.channels));
-  for (std::size_t p = 0; p < plane; ++p) {
-    double norm2 = 0.0;
-    for (int c = 0; c < map.channels; ++c) {
-      const double value = out[static_cast<std::size_t>(c) * plane + p];
-      norm2 += value * value;
+  // Channel-major loops (contiguous); every cell still sums its channels in order 0, 1, ...
+  std::vector<double> norm2(plane, 0.0);
+  for (int c = 0; c < map.channels; ++c) {
+    const float* channel = out.data() + static_cast<std::size_t>(c) * plane;
+    for (std::size_t p = 0; p < plane; ++p) {
+      const double value = channel[p];
+      norm2[p] += value * value;
     }
-    if (norm2 <= 0.0) continue;
-    const double inv = 1.0 / std::sqrt(norm2);
-    for (int c = 0; c < map.channels; ++c) {
-      float& value = out[static_cast<std::size_t>(c) * plane + p];
-      value = static_cast<float>(value * inv);
-    }
+  }
+  std::vector<double> scale(plane, 1.0);  // a zero vector stays as it is
+  for (std::size_t p = 0; p < plane; ++p)
+    if (norm2[p] > 0.0) scale[p] = 1.0 / std::sqrt(norm2[p]);
+  for (int c = 0; c < map.channels; ++c) {
+    float* channel = out.data() + static_cast<std::size_t>(c) * plane;
+    for (std::size_t p = 0; p < plane; ++p)
+      if (norm2[p] > 0.0) channel[p] = static_cast<float>(channel[p] * scale[p]);
   }
   return out;
 }

@@ -110,7 +110,9 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
       denseOutputMap(outputs[2], options_.reliability_output, fit.network, model_.file(), kStride);
 
   // Detection on the part of the heatmap that shows the image (not the padding).
-  const cv::Mat heatmap = cellLogitsToHeatmap(logits, kStride)(cv::Rect({0, 0}, fit.valid()));
+  // Cells that cannot reach the detection threshold are skipped (same maxima, same scores).
+  const cv::Mat heatmap = cellLogitsToHeatmap(
+      logits, kStride, options_.detection_threshold)(cv::Rect({0, 0}, fit.valid()));
   std::vector<ScoredPixel> points =
       localMaxima(heatmap, options_.nms_window, options_.detection_threshold);
   for (auto& p : points) {

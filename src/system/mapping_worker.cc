@@ -1,7 +1,5 @@
 #include "superdyna/system/mapping_worker.h"
 
-#include <time.h>
-
 #include <chrono>
 #include <stdexcept>
 #include <utility>
@@ -17,12 +15,6 @@ double millisecondsSince(Clock::time_point start) {
 }
 
 }  // namespace
-
-double threadCpuMs() {
-  timespec now{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
-  return 1e3 * static_cast<double>(now.tv_sec) + 1e-6 * static_cast<double>(now.tv_nsec);
-}
 
 MappingWorker::MappingWorker(std::size_t capacity) : capacity_(capacity) {
   if (capacity_ == 0) throw std::invalid_argument("MappingWorker: capacity must be >= 1");

@@ -117,6 +117,7 @@ tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
   const double cpu_start = threadCpuMs();
   const tracking::Frame frame = front_end_.build(bundle);
   timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
+  timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
   const tracking::TrackingResult result = track(frame);
   timings_.wall_s += secondsSince(start);
   return result;
@@ -190,6 +191,7 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
     frames.close();
     front_end.join();
     timings_.busy.front_end_ms += front_end_ms;
+    timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
     timings_.wall_s += secondsSince(start);
   };
   try {

@@ -66,6 +66,7 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& 
     features::StereoMatchOptions stereo = options.stereo;
     stereo.same_class_only = options.features.class_wise_matching;
     stereo_matcher_.emplace(cam0, *cam1, stereo);
+    if (options.parallel_extraction) helper_ = std::make_unique<TaskThread>();
   }
 }
 
@@ -76,13 +77,25 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   frame.imu = bundle.imu;
   const bool stereo = stereo_matcher_ && !bundle.image1.empty();
   auto start = Clock::now();
-  frame.features = left_extractor_->extract(bundle.image0);
   features::FeatureSet right;
-  if (stereo) right = right_extractor_->extract(bundle.image1);
-  if (bundle.masks) {
-    labelKeypoints(bundle.masks->cam0, *bundle.masks, frame.features.keypoints);
-    if (stereo) labelKeypoints(bundle.masks->cam1, *bundle.masks, right.keypoints);
+  if (stereo && helper_) {
+    helper_->run([&] { right = extractRight(bundle); });
+    try {
+      frame.features = left_extractor_->extract(bundle.image0);
+    } catch (...) {
+      // The job refers to `bundle` and `right`: let it finish before they go.
+      try {
+        helper_->wait();
+      } catch (...) {
+      }
+      throw;
+    }
+    helper_->wait();
+  } else {
+    frame.features = left_extractor_->extract(bundle.image0);
+    if (stereo) right = extractRight(bundle);
   }
+  if (bundle.masks) labelKeypoints(bundle.masks->cam0, *bundle.masks, frame.features.keypoints);
   frame.extract_ms = millisecondsSince(start);
 
   start = Clock::now();
@@ -96,6 +109,12 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   if (stereo) matchStereo(right, frame);
   frame.stereo_ms = millisecondsSince(start);
   return frame;
+}
+
+features::FeatureSet FrontEnd::extractRight(const io::FrameBundle& bundle) {
+  features::FeatureSet right = right_extractor_->extract(bundle.image1);
+  if (bundle.masks) labelKeypoints(bundle.masks->cam1, *bundle.masks, right.keypoints);
+  return right;
 }
 
 void FrontEnd::matchStereo(const features::FeatureSet& right, Frame& frame) const {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "superdyna/core/error.h"
 #include "superdyna/features/keypoint_decoding.h"
@@ -81,6 +82,76 @@ TEST(KeypointDecoding, LocalMaximaActLikeAMaxPoolWithThreshold) {
   EXPECT_EQ(sub[1].x, 6);
   EXPECT_EQ(sub[1].y, 9);
   expectError<OptionError>([&] { localMaxima(heat, 4, 0.0f); }, {"nms_window"});
+}
+
+/// Logits of a rows x cols grid of 8x8 cells from a seeded generator: a dustbin that wins in
+/// most cells, and pixel logits of which some come close to or beat it.
+Buffer randomCellLogits(int rows, int cols, unsigned seed) {
+  Buffer logits(65, rows, cols);
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> pixel(0.0f, 1.5f), dustbin(6.0f, 3.0f);
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < cols; ++j) {
+      for (int c = 0; c < 64; ++c)
+        logits.at(c, i, j) = pixel(rng);
+      logits.at(64, i, j) = dustbin(rng);
+    }
+  }
+  return logits;
+}
+
+TEST(KeypointDecoding, SkippingColdCellsKeepsEveryPixelAboveTheThresholdExact) {
+  const Buffer logits = randomCellLogits(30, 40, 7);
+  const float threshold = 0.05f;
+  const cv::Mat full = cellLogitsToHeatmap(logits.map);
+  const cv::Mat fast = cellLogitsToHeatmap(logits.map, 8, threshold);
+  ASSERT_EQ(fast.size(), full.size());
+  int hot = 0, skipped = 0;
+  for (int y = 0; y < full.rows; ++y) {
+    for (int x = 0; x < full.cols; ++x) {
+      const float f = full.at<float>(y, x), s = fast.at<float>(y, x);
+      if (f > threshold) {
+        ++hot;
+        ASSERT_EQ(s, f) << x << ", " << y;  // bit for bit
+      } else {
+        ASSERT_TRUE(s == f || s == 0.0f) << x << ", " << y;
+        if (s != f) ++skipped;
+      }
+    }
+  }
+  // The data exercise both kinds of cells.
+  EXPECT_GT(hot, 50);
+  EXPECT_GT(skipped, full.rows * full.cols / 4);
+  // Hence the same maxima with the same scores, in the same order.
+  const auto expected = localMaxima(full, 5, threshold);
+  const auto actual = localMaxima(fast, 5, threshold);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); ++k) {
+    EXPECT_EQ(actual[k].x, expected[k].x);
+    EXPECT_EQ(actual[k].y, expected[k].y);
+    EXPECT_EQ(actual[k].score, expected[k].score);
+  }
+  // No skipping without a threshold.
+  EXPECT_EQ(cv::norm(cellLogitsToHeatmap(logits.map, 8, 0.0f), full, cv::NORM_INF), 0.0);
+}
+
+TEST(KeypointDecoding, TopKEqualsTheHeadOfTheFullOrderIncludingTies) {
+  std::vector<ScoredPixel> points;
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> score(0, 20);  // few distinct scores: many ties
+  for (int y = 0; y < 30; ++y)
+    for (int x = 0; x < 30; ++x)
+      points.push_back({x, y, 0.05f * static_cast<float>(score(rng))});
+  std::shuffle(points.begin(), points.end(), rng);
+  std::vector<ScoredPixel> sorted = points;
+  sortByScore(sorted);
+  const auto top = selectTopK(points, 100);
+  ASSERT_EQ(top.size(), 100u);
+  for (std::size_t k = 0; k < top.size(); ++k) {
+    EXPECT_EQ(top[k].x, sorted[k].x) << k;
+    EXPECT_EQ(top[k].y, sorted[k].y) << k;
+    EXPECT_EQ(top[k].score, sorted[k].score) << k;
+  }
 }
 
 TEST(KeypointDecoding, GreedyNmsSuppressesSquaresAroundKeptPointsOnly) {

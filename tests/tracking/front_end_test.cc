@@ -108,5 +108,57 @@ TEST(FrontEnd, XFeatFramesCarryFloatDescriptorsAndStereoDepth) {
   EXPECT_LT(static_cast<double>(implausible), 0.05 * static_cast<double>(depths.size()));
 }
 
+/// Whether two frames carry the same features, bit for bit, and the same stereo depths.
+void expectSameFrames(const Frame& a, const Frame& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a.features.keypoints[i].pixel, b.features.keypoints[i].pixel) << i;
+    EXPECT_EQ(a.features.keypoints[i].response, b.features.keypoints[i].response) << i;
+    EXPECT_EQ(a.depth_m[i], b.depth_m[i]) << i;
+  }
+  ASSERT_EQ(a.features.descriptors.size(), b.features.descriptors.size());
+  EXPECT_EQ(cv::norm(a.features.descriptors, b.features.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_EQ(a.numStereo(), b.numStereo());
+}
+
+/// Frames of the first `count` stereo bundles of the EuRoC excerpt with right images extracted
+/// on the helper thread, or one after the other.
+std::vector<Frame> eurocFrames(const std::filesystem::path& path, FrontEndOptions options,
+                               bool parallel, std::size_t count) {
+  options.parallel_extraction = parallel;
+  FrontEnd front_end = eurocFrontEnd(path, options);
+  io::DatasetSourceOptions source_options;
+  source_options.inertial = false;
+  source_options.max_frames = count;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, path, source_options);
+  std::vector<Frame> frames;
+  while (const auto bundle = source->next())
+    frames.push_back(front_end.build(*bundle));
+  EXPECT_EQ(front_end.helperCpuMs() > 0.0, parallel);
+  return frames;
+}
+
+TEST(FrontEnd, ParallelExtractionGivesTheFeaturesOfSequentialExtraction) {
+  SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
+  std::vector<FrontEndOptions> configurations(1);  // ORB
+  if (const auto model = test::sharedDir() / "models/xfeat.onnx"; std::filesystem::exists(model)) {
+    configurations.emplace_back();
+    configurations.back().features.type = features::FeatureType::kXFeat;
+    configurations.back().features.model = model.string();
+  } else {
+    std::cout << "models/xfeat.onnx absent: ORB only\n";
+  }
+  for (const FrontEndOptions& options : configurations) {
+    SCOPED_TRACE(features::toString(options.features.type));
+    const std::vector<Frame> sequential = eurocFrames(path, options, false, 2);
+    const std::vector<Frame> parallel = eurocFrames(path, options, true, 2);
+    ASSERT_EQ(sequential.size(), 2u);
+    ASSERT_EQ(parallel.size(), 2u);
+    for (std::size_t k = 0; k < sequential.size(); ++k)
+      expectSameFrames(sequential[k], parallel[k]);
+    EXPECT_GT(parallel.back().numStereo(), 100);
+  }
+}
+
 }  // namespace
 }  // namespace superdyna::tracking

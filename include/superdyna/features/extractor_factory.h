@@ -36,8 +36,10 @@ struct FeatureOptions {
   int nms_radius_px = -1;
   /// Learned extractors: spread the top-K over square cells of this side [px]; 0 = off.
   int grid_cell_px = 0;
-  /// Learned extractors: ONNX Runtime intra-op threads, >= 1.
-  int inference_threads = 2;
+  /// Learned extractors: ONNX Runtime intra-op threads per network, >= 1. One: the stereo front
+  /// end runs the left and right networks side by side (FrontEndOptions::parallel_extraction),
+  /// which uses two cores better than splitting every operator of one network over two threads.
+  int inference_threads = 1;
   /// Match keypoints (stereo, map-to-frame) only within one semantic class (Keypoint::class_id).
   bool class_wise_matching = true;
 

@@ -49,7 +49,12 @@ struct ScoredPixel {
 /// cell*cell + 1 channels (the last one is the dustbin): softmax over the channels of each cell,
 /// dustbin dropped, depth-to-space. Throws InputError when the channel count is not
 /// cell*cell + 1.
-cv::Mat cellLogitsToHeatmap(const DenseMap& logits, int cell = 8);
+/// With min_heat > 0 the softmax is skipped in cells where no pixel can exceed min_heat (judged
+/// from the largest pixel logit against the dustbin logit, with a safety margin); their heat is
+/// left at 0. Pixels above min_heat keep their exact heat, so localMaxima(..., threshold) with
+/// threshold >= min_heat finds the same maxima with the same scores (a pixel at or below the
+/// threshold never decides whether a pixel above it is a maximum).
+cv::Mat cellLogitsToHeatmap(const DenseMap& logits, int cell = 8, float min_heat = 0.0f);
 
 /// Pixels whose heat equals the maximum of their window x window neighbourhood (pixels outside
 /// the heatmap ignored, as a max-pool with -inf padding) and exceeds `threshold` (strictly):

@@ -30,8 +30,9 @@ struct OnnxModelOptions {
   int intra_op_threads = 2;
   GraphOptimization optimization = GraphOptimization::kAll;  ///< ORT_ENABLE_ALL by default.
   /// Whether idle intra-op threads spin (lower latency, but they burn CPU that other pipeline
-  /// stages could use). ONNX Runtime's default is to spin.
-  bool allow_spinning = true;
+  /// stages could use: XFeat on 752x480 with two threads took twice the CPU time of one thread
+  /// when spinning, about the same without). ONNX Runtime's default is to spin; ours is not to.
+  bool allow_spinning = false;
 
   /// Throws OptionError naming the first invalid field.
   void validate() const;

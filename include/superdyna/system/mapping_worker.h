@@ -17,13 +17,12 @@
 #include <thread>
 
 #include "superdyna/core/bounded_queue.h"
+#include "superdyna/core/task_thread.h"
 #include "superdyna/tracking/tracker.h"
 
 namespace superdyna::system {
 
-/// CPU time the calling thread has used so far [ms] (unlike wall-clock time, not inflated when
-/// other processes compete for the cores).
-double threadCpuMs();
+using superdyna::threadCpuMs;  // core/task_thread.h
 
 class MappingWorker final : public tracking::MappingSink {
  public:

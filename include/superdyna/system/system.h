@@ -62,8 +62,10 @@ SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions
 /// loaded machine too). In the deterministic pipeline everything runs in the caller's thread.
 struct ThreadBusyTimes {
   double front_end_ms = 0.0;  ///< Reading the dataset (in run()), extraction, stereo.
-  double tracking_ms = 0.0;   ///< Tracking and keyframe insertion (plus local BA if sequential).
-  double mapping_ms = 0.0;    ///< The mapping thread (concurrent only).
+  /// The front end's helper thread extracting right images (FrontEndOptions::parallel_extraction).
+  double extraction_helper_ms = 0.0;
+  double tracking_ms = 0.0;  ///< Tracking and keyframe insertion (plus local BA if sequential).
+  double mapping_ms = 0.0;   ///< The mapping thread (concurrent only).
 };
 
 /// Match counts summed over the processed frames. Cross-class matches pair keypoints (or a map

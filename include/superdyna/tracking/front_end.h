@@ -9,11 +9,16 @@
 // instance under it and that instance's class (no mask: background, 0); with class-wise matching
 // the stereo matcher pairs only keypoints of one class. Keypoints on objects are kept: removing
 // dynamic ones is a later stage's decision.
+//
+// With parallel_extraction the right image is extracted on a helper thread while the calling
+// thread extracts the left one (each image has its own extractor, so the features are the same
+// as when extracting one after the other).
 
 #include <memory>
 #include <optional>
 
 #include "superdyna/core/camera_model.h"
+#include "superdyna/core/task_thread.h"
 #include "superdyna/features/extractor_factory.h"
 #include "superdyna/features/stereo_matcher.h"
 #include "superdyna/io/calibration.h"
@@ -26,6 +31,8 @@ struct FrontEndOptions {
   features::FeatureOptions features;    ///< Extractor of both cameras, class-wise matching.
   features::StereoMatchOptions stereo;  ///< Left-right matching (same_class_only follows
                                         ///< features.class_wise_matching).
+  /// Stereo: extract the right image on a helper thread while the left one is extracted.
+  bool parallel_extraction = true;
   void validate() const;
 };
 
@@ -48,14 +55,19 @@ class FrontEnd {
   /// Scale pyramid of the extractor (map points and optimisation weights use it).
   features::PyramidLayout pyramid() const { return pyramid_; }
   const features::FeatureExtractor& extractor() const { return *left_extractor_; }
+  /// CPU time the helper thread of parallel extraction has used so far [ms] (0 without it).
+  double helperCpuMs() const { return helper_ ? helper_->cpuMs() : 0.0; }
 
  private:
+  /// Features of the right image, labelled with the right instance mask when there is one.
+  features::FeatureSet extractRight(const io::FrameBundle& bundle);
   void matchStereo(const features::FeatureSet& right, Frame& frame) const;
 
   CameraModel camera0_;
   features::PyramidLayout pyramid_;
   std::unique_ptr<features::FeatureExtractor> left_extractor_, right_extractor_;
   std::optional<features::StereoMatcher> stereo_matcher_;
+  std::unique_ptr<TaskThread> helper_;  ///< Extracts the right image (parallel_extraction).
 };
 
 }  // namespace superdyna::tracking
