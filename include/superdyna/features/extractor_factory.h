@@ -36,6 +36,9 @@ struct FeatureOptions {
   int nms_radius_px = -1;
   /// Learned extractors: spread the top-K over square cells of this side [px]; 0 = off.
   int grid_cell_px = 0;
+  /// XFeat: move each keypoint to the heat-weighted centroid of the (2r+1)^2 heatmap window
+  /// around its integer maximum (keypoint_decoding.h: refineSubpixel); 0 = integer pixels.
+  int subpixel_radius_px = 0;
   /// Learned extractors: ONNX Runtime intra-op threads, >= 1.
   int inference_threads = 2;
   /// Match keypoints (stereo, map-to-frame) only within one semantic class (Keypoint::class_id).
