@@ -27,7 +27,17 @@ FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
   pixels.reserve(points.size());
   for (const auto& p : points)
     pixels.emplace_back(p.x, p.y);
+  return scoredPixelsToFeatures(points, pixels, descriptor_map, fit, image_size, stride);
+}
 
+FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
+                                  const std::vector<Eigen::Vector2d>& pixels,
+                                  const DenseMap& descriptor_map, const ImageFit& fit,
+                                  cv::Size image_size, int stride) {
+  if (pixels.size() != points.size()) {
+    throw InputError(fmt::format("scoredPixelsToFeatures: {} pixels for {} points", pixels.size(),
+                                 points.size()));
+  }
   FeatureSet features;
   features.descriptor_type = DescriptorType::kFloat;
   features.image_size = image_size;

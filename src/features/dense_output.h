@@ -23,5 +23,11 @@ DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name
 FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
                                   const DenseMap& descriptor_map, const ImageFit& fit,
                                   cv::Size image_size, int stride);
+/// The same with the keypoints at `pixels` (network-input pixels, one per point, e.g. refined
+/// to sub-pixel positions) instead of the points' integer pixels.
+FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
+                                  const std::vector<Eigen::Vector2d>& pixels,
+                                  const DenseMap& descriptor_map, const ImageFit& fit,
+                                  cv::Size image_size, int stride);
 
 }  // namespace superdyna::features

@@ -19,6 +19,7 @@ XFeatOptions xfeatOptions(const FeatureOptions& options) {
   }
   if (options.nms_radius_px >= 0) xfeat.nms_window = 2 * options.nms_radius_px + 1;
   xfeat.grid_cell_px = options.grid_cell_px;
+  xfeat.subpixel_radius = options.subpixel_radius_px;
   xfeat.runtime.intra_op_threads = options.inference_threads;
   return xfeat;
 }
@@ -78,6 +79,10 @@ void FeatureOptions::validate() const {
   }
   if (grid_cell_px < 0) {
     throw OptionError("features.grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
+  }
+  if (subpixel_radius_px < 0) {
+    throw OptionError("features.subpixel_radius_px",
+                      fmt::format("must be >= 0, got {}", subpixel_radius_px));
   }
   if (inference_threads < 1) {
     throw OptionError("features.inference_threads",

@@ -203,6 +203,35 @@ std::vector<ScoredPixel> selectTopK(std::vector<ScoredPixel> points, int k, int 
   return chosen;
 }
 
+std::vector<Eigen::Vector2d> refineSubpixel(const cv::Mat& heatmap,
+                                            const std::vector<ScoredPixel>& points, int radius) {
+  if (radius < 0) {
+    throw OptionError("subpixel_radius", fmt::format("must be >= 0, got {}", radius));
+  }
+  CV_Assert(heatmap.type() == CV_32FC1);
+  std::vector<Eigen::Vector2d> refined;
+  refined.reserve(points.size());
+  for (const auto& p : points) {
+    const int x0 = std::max(0, p.x - radius), x1 = std::min(heatmap.cols - 1, p.x + radius);
+    const int y0 = std::max(0, p.y - radius), y1 = std::min(heatmap.rows - 1, p.y + radius);
+    float floor = std::numeric_limits<float>::infinity();
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        floor = std::min(floor, heatmap.at<float>(y, x));
+    double sum = 0.0, sx = 0.0, sy = 0.0;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double w = heatmap.at<float>(y, x) - floor;
+        sum += w;
+        sx += w * x;
+        sy += w * y;
+      }
+    }
+    refined.push_back(sum > 0.0 ? Eigen::Vector2d(sx / sum, sy / sum) : Eigen::Vector2d(p.x, p.y));
+  }
+  return refined;
+}
+
 Eigen::Vector2d pixelToMap(const Eigen::Vector2d& pixel, int stride) {
   return (pixel.array() + 0.5) / stride - 0.5;
 }

@@ -36,6 +36,9 @@ void XFeatOptions::validate() const {
   if (nms_window < 1 || nms_window % 2 == 0) {
     throw OptionError("nms_window", fmt::format("must be odd and >= 1, got {}", nms_window));
   }
+  if (subpixel_radius < 0) {
+    throw OptionError("subpixel_radius", fmt::format("must be >= 0, got {}", subpixel_radius));
+  }
   if (grid_cell_px < 0) {
     throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
@@ -125,7 +128,9 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
   const DenseMap unit_map{unit_cells.data(), descriptors.channels, descriptors.rows,
                           descriptors.cols};
 
-  FeatureSet features = scoredPixelsToFeatures(points, unit_map, fit, gray.size(), kStride);
+  FeatureSet features =
+      scoredPixelsToFeatures(points, refineSubpixel(heatmap, points, options_.subpixel_radius),
+                             unit_map, fit, gray.size(), kStride);
   last_extract_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return features;

@@ -28,6 +28,7 @@ void TrackerOptions::validate() const {
   if (min_projection_matches < 0) {
     throw OptionError("tracker.min_projection_matches", "must be >= 0");
   }
+  if (!(refine_radius_px >= 0.0)) throw OptionError("tracker.refine_radius_px", "must be >= 0");
   if (min_inliers < 3) throw OptionError("tracker.min_inliers", "must be >= 3");
   if (local_keyframes < 0) throw OptionError("tracker.local_keyframes", "must be >= 0");
   if (!(keyframe_tracked_ratio > 0.0 && keyframe_tracked_ratio <= 1.0)) {
@@ -223,7 +224,8 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
                                                     TrackingResult& result) {
   std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
   const std::vector<LocalPoint> points = localPoints();
-  const std::vector<features::Match> matches = matchLocalPoints(frame, points, prediction.T_w_b);
+  std::vector<features::Match> matches =
+      matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true, true);
   result.matches = static_cast<int>(matches.size());
   for (const features::Match& m : matches) {
     int point_class = features::kClassBackground;
@@ -234,12 +236,22 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
     }
   }
   if (result.matches < options_.min_inliers) return tracked;
-  const optim::PoseOptimizationResult pose =
+  optim::PoseOptimizationResult pose =
       pose_optimizer_.optimize(prediction.T_w_b, cameras_, poseObservations(frame, points, matches),
                                rotationPrior(prediction));
   // The first matches.size() observations are the left ones; count and keep those.
-  const auto left_end = pose.inliers.begin() + static_cast<std::ptrdiff_t>(matches.size());
-  result.inliers = static_cast<int>(std::count(pose.inliers.begin(), left_end, true));
+  const auto leftInliers = [](const optim::PoseOptimizationResult& p, std::size_t left) {
+    return static_cast<int>(
+        std::count(p.inliers.begin(), p.inliers.begin() + static_cast<std::ptrdiff_t>(left), true));
+  };
+  result.inliers = leftInliers(pose, matches.size());
+  if (options_.refine_radius_px > 0.0 && result.inliers >= options_.min_inliers) {
+    if (auto refined = refineByReprojection(frame, points, prediction, pose, result.inliers)) {
+      pose = std::move(refined->first);
+      matches = std::move(refined->second);
+      result.inliers = leftInliers(pose, matches.size());
+    }
+  }
   if (result.inliers < options_.min_inliers) return tracked;
   result.T_w_b = pose.T_w_b;
   for (std::size_t k = 0; k < matches.size(); ++k) {
@@ -249,6 +261,24 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
     map_->increaseFound(id);
   }
   return tracked;
+}
+
+std::optional<std::pair<optim::PoseOptimizationResult, std::vector<features::Match>>>
+Tracker::refineByReprojection(const Frame& frame, const std::vector<LocalPoint>& points,
+                              const Prediction& prediction,
+                              const optim::PoseOptimizationResult& pose, int inliers) {
+  features::ProjectionMatchOptions tight = options_.projection;
+  tight.radius_px = options_.refine_radius_px;
+  std::vector<features::Match> matches =
+      matchLocalPoints(frame, points, pose.T_w_b, tight, false, false);
+  if (static_cast<int>(matches.size()) <= inliers) return std::nullopt;
+  optim::PoseOptimizationResult refined = pose_optimizer_.optimize(
+      pose.T_w_b, cameras_, poseObservations(frame, points, matches), rotationPrior(prediction));
+  const int refined_inliers = static_cast<int>(
+      std::count(refined.inliers.begin(),
+                 refined.inliers.begin() + static_cast<std::ptrdiff_t>(matches.size()), true));
+  if (refined_inliers <= inliers) return std::nullopt;
+  return std::make_pair(std::move(refined), std::move(matches));
 }
 
 void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
@@ -395,9 +425,9 @@ std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
   return points;
 }
 
-std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
-                                                       const std::vector<LocalPoint>& points,
-                                                       const SE3d& T_w_b) {
+std::vector<features::Match> Tracker::matchLocalPoints(
+    const Frame& frame, const std::vector<LocalPoint>& points, const SE3d& T_w_b,
+    const features::ProjectionMatchOptions& options, bool allow_wide, bool count_visible) {
   features::FeatureSet query;
   // Keep only the points that project into the image; remember their index in `points`.
   std::vector<int> visible;
@@ -413,7 +443,7 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
     cv::Mat descriptor;
     map_->readMapPoint(points[k].id, [&](const map::MapPoint& p) { descriptor = p.descriptor; });
     if (descriptor.empty()) continue;
-    map_->increaseVisible(points[k].id);
+    if (count_visible) map_->increaseVisible(points[k].id);
     visible.push_back(static_cast<int>(k));
     predicted.push_back(*pixel);
     query.keypoints.push_back(queryKeypoint(points[k].id));
@@ -423,9 +453,9 @@ std::vector<features::Match> Tracker::matchLocalPoints(const Frame& frame,
   cv::vconcat(rows, query.descriptors);
   const features::KeypointGrid grid(frame.features.keypoints, frame.features.image_size);
   std::vector<features::Match> matches =
-      features::matchByProjection(query, predicted, frame.features, grid, options_.projection);
-  if (static_cast<int>(matches.size()) < options_.min_projection_matches) {
-    features::ProjectionMatchOptions wide = options_.projection;
+      features::matchByProjection(query, predicted, frame.features, grid, options);
+  if (allow_wide && static_cast<int>(matches.size()) < options_.min_projection_matches) {
+    features::ProjectionMatchOptions wide = options;
     wide.radius_px = options_.wide_radius_px;
     matches = features::matchByProjection(query, predicted, frame.features, grid, wide);
   }

@@ -196,6 +196,42 @@ TEST(KeypointDecoding, BorderAndTopKSelection) {
   EXPECT_EQ(selectTopK(many, 0).size(), many.size());
 }
 
+TEST(KeypointDecoding, SubpixelRefinementRecoversTheCentreOfASymmetricPeak) {
+  // A Gaussian blob centred at (12.3, 7.6) sampled on pixel centres: the integer maximum is
+  // (12, 8); the centroid of the 5x5 window above its floor lies close to the true centre.
+  cv::Mat heatmap(16, 24, CV_32FC1);
+  const double cx = 12.3, cy = 7.6, sigma = 0.8;
+  for (int y = 0; y < heatmap.rows; ++y) {
+    for (int x = 0; x < heatmap.cols; ++x) {
+      const double r2 = (x - cx) * (x - cx) + (y - cy) * (y - cy);
+      heatmap.at<float>(y, x) = static_cast<float>(std::exp(-r2 / (2 * sigma * sigma)));
+    }
+  }
+  const std::vector<ScoredPixel> peak = localMaxima(heatmap, 5, 0.05f);
+  ASSERT_EQ(peak.size(), 1u);
+  EXPECT_EQ(peak[0].x, 12);
+  EXPECT_EQ(peak[0].y, 8);
+  const Eigen::Vector2d refined = refineSubpixel(heatmap, peak, 2).front();
+  EXPECT_NEAR(refined.x(), cx, 0.05);
+  EXPECT_NEAR(refined.y(), cy, 0.05);
+  // A 3x3 window is biased towards the integer maximum but still on the right side of it.
+  const Eigen::Vector2d small = refineSubpixel(heatmap, peak, 1).front();
+  EXPECT_GT(small.x(), 12.1);
+  EXPECT_LT(small.x(), cx + 0.05);
+  EXPECT_LT(small.y(), 7.9);
+  EXPECT_GT(small.y(), cy - 0.05);
+
+  // Radius 0 and a flat window keep the integer pixel; windows are clipped at the border.
+  EXPECT_EQ(refineSubpixel(heatmap, peak, 0).front(), Eigen::Vector2d(12.0, 8.0));
+  const cv::Mat flat(4, 4, CV_32FC1, cv::Scalar(0.5));
+  EXPECT_EQ(refineSubpixel(flat, {{1, 2, 0.5f}}, 2).front(), Eigen::Vector2d(1.0, 2.0));
+  cv::Mat corner = cv::Mat::zeros(4, 4, CV_32FC1);
+  corner.at<float>(0, 0) = 1.0f;
+  corner.at<float>(0, 1) = 1.0f;
+  EXPECT_EQ(refineSubpixel(corner, {{0, 0, 1.0f}}, 1).front(), Eigen::Vector2d(0.5, 0.0));
+  expectError<OptionError>([&] { refineSubpixel(heatmap, peak, -1); }, {"subpixel_radius", "-1"});
+}
+
 TEST(KeypointDecoding, PixelCentreConventionAndBilinearSampling) {
   // The centre of cell 0 (pixels 0..7) is pixel 3.5; pixel 0 lies 7/16 cell before it.
   EXPECT_DOUBLE_EQ(pixelToMap({3.5, 11.5}, 8).x(), 0.0);

@@ -36,6 +36,9 @@ struct FeatureOptions {
   int nms_radius_px = -1;
   /// Learned extractors: spread the top-K over square cells of this side [px]; 0 = off.
   int grid_cell_px = 0;
+  /// XFeat: move each keypoint to the heat-weighted centroid of the (2r+1)^2 heatmap window
+  /// around its integer maximum (keypoint_decoding.h: refineSubpixel); 0 = integer pixels.
+  int subpixel_radius_px = 0;
   /// Learned extractors: ONNX Runtime intra-op threads per network, >= 1. One: the stereo front
   /// end runs the left and right networks side by side (FrontEndOptions::parallel_extraction),
   /// which uses two cores better than splitting every operator of one network over two threads.

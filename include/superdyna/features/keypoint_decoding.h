@@ -85,6 +85,14 @@ std::vector<ScoredPixel> keepInside(const std::vector<ScoredPixel>& points, int 
 /// score (so every cell's best point comes before any cell's second best). k <= 0 keeps all.
 std::vector<ScoredPixel> selectTopK(std::vector<ScoredPixel> points, int k, int grid_cell_px = 0);
 
+/// Sub-pixel positions of local maxima of `heatmap` (CV_32FC1): each point moves to the
+/// heat-weighted centroid (soft-argmax) of the (2 radius + 1)^2 window around it, clipped to
+/// the heatmap; the weights are the heat above the window's minimum, so a flat surround does not
+/// pull the peak towards the window centre. radius 0 returns the integer positions.
+/// Throws OptionError for radius < 0.
+std::vector<Eigen::Vector2d> refineSubpixel(const cv::Mat& heatmap,
+                                            const std::vector<ScoredPixel>& points, int radius);
+
 /// Map coordinate (u = column, v = row) of a pixel on a map of stride `stride` (file comment).
 Eigen::Vector2d pixelToMap(const Eigen::Vector2d& pixel, int stride);
 

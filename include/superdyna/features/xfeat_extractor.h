@@ -11,6 +11,9 @@
 //  3. non-maximum suppression: pixels equal to the maximum of their 5x5 window with heat > 0.05
 //     (inside the image: padding never yields keypoints);
 //  4. score = heat x reliability, the reliability map sampled bilinearly at the keypoint;
+//     with subpixel_radius > 0 (not in the authors' code) the chosen maxima then move to the
+//     heat-weighted centroid of their window: integer maxima of blurred or dim images land 1-3 px
+//     off (bench/match_accuracy.cc measures it) and sub-pixel positions match better;
 //  5. the top-K scores (1200), optionally spread over a grid of cells;
 //  6. descriptors: the dense 64-d map L2-normalised per cell, sampled bilinearly at the
 //     keypoints, L2-normalised again.
@@ -38,6 +41,9 @@ struct XFeatOptions {
   /// Spread the top-K over square cells of this side [px] (keypoint_decoding.h: selectTopK);
   /// 0 takes the K best scores wherever they are.
   int grid_cell_px = 0;
+  /// Sub-pixel keypoints: heat-weighted centroid of the (2r+1)^2 heatmap window around each
+  /// maximum (keypoint_decoding.h: refineSubpixel), >= 0; 0 keeps the integer pixels.
+  int subpixel_radius = 0;
   FitMode fit = FitMode::kPad;  ///< How images are brought to multiples of 32.
   /// Warm the network up for images of this size at construction (empty: no warm-up).
   cv::Size warmup_size;

@@ -41,9 +41,14 @@ struct TrackerOptions {
   features::ProjectionMatchOptions projection;  ///< Map-to-frame matching (radius 15 px).
   double wide_radius_px = 40.0;                 ///< Radius of the retry when too few matches, > 0.
   int min_projection_matches = 40;              ///< Fewer matches trigger the wide retry, >= 0.
-  optim::PoseOptimizerOptions pose;             ///< Motion-only BA.
-  int min_inliers = 15;                         ///< Fewer pose inliers = tracking lost, >= 3.
-  int local_keyframes = 10;  ///< Covisible keyframes whose points form the local map, >= 0.
+  /// Second search, > 0: after the first pose estimate, the local map is matched again within
+  /// this radius [px] of the points' projections from that estimate and the pose optimised again
+  /// (kept when it has more inliers). Corrects wrong first matches from a poor prediction, e.g.
+  /// of learned features whose 1/8-resolution descriptors barely tell neighbours apart; 0 = off.
+  double refine_radius_px = 0.0;
+  optim::PoseOptimizerOptions pose;  ///< Motion-only BA.
+  int min_inliers = 15;              ///< Fewer pose inliers = tracking lost, >= 3.
+  int local_keyframes = 10;          ///< Covisible keyframes whose points form the local map, >= 0.
   double keyframe_tracked_ratio = 0.75;    ///< New keyframe below this share of the ref's points.
   double keyframe_max_interval_s = 0.5;    ///< New keyframe at least this often [s], > 0.
   int keyframe_min_tracked = 150;          ///< New keyframe when fewer inliers than this, >= 0.
@@ -177,9 +182,20 @@ class Tracker {
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                          const Prediction& prediction, TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;
+  /// Matches the points projected from T_w_b within options.radius_px (retried at
+  /// wide_radius_px when too few, if `allow_wide`); `count_visible` counts the projected points
+  /// as seen (once per frame).
   std::vector<features::Match> matchLocalPoints(const Frame& frame,
                                                 const std::vector<LocalPoint>& points,
-                                                const SE3d& T_w_b);
+                                                const SE3d& T_w_b,
+                                                const features::ProjectionMatchOptions& options,
+                                                bool allow_wide, bool count_visible);
+  /// The pose and inliers of the refine_radius_px search from `pose` (see TrackerOptions), or
+  /// nullopt when it finds fewer inliers than `pose` has.
+  std::optional<std::pair<optim::PoseOptimizationResult, std::vector<features::Match>>>
+  refineByReprojection(const Frame& frame, const std::vector<LocalPoint>& points,
+                       const Prediction& prediction, const optim::PoseOptimizationResult& pose,
+                       int inliers);
   std::vector<optim::PoseObservation> poseObservations(
       const Frame& frame, const std::vector<LocalPoint>& points,
       const std::vector<features::Match>& matches) const;
