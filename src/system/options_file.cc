@@ -114,6 +114,8 @@ std::map<std::string, Section> sectionsOf(SystemOptions& o) {
         {"keyframe_tracked_ratio", doubleSetter(t.keyframe_tracked_ratio)},
         {"keyframe_max_interval_s", doubleSetter(t.keyframe_max_interval_s)},
         {"keyframe_min_tracked", intSetter(t.keyframe_min_tracked)},
+        {"keyframe_min_interval_s", doubleSetter(t.keyframe_min_interval_s)},
+        {"keyframe_weak_inliers", intSetter(t.keyframe_weak_inliers)},
         {"keyframe_min_stereo", intSetter(t.keyframe_min_stereo)},
         {"close_depth_baselines", doubleSetter(t.close_depth_baselines)},
         {"min_new_points", intSetter(t.min_new_points)},

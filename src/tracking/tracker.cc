@@ -38,6 +38,12 @@ void TrackerOptions::validate() const {
   }
   if (keyframe_min_tracked < 0) throw OptionError("tracker.keyframe_min_tracked", "must be >= 0");
   if (keyframe_min_stereo < 0) throw OptionError("tracker.keyframe_min_stereo", "must be >= 0");
+  if (!(keyframe_min_interval_s >= 0.0)) {
+    throw OptionError("tracker.keyframe_min_interval_s", "must be >= 0");
+  }
+  if (keyframe_weak_inliers < 0) {
+    throw OptionError("tracker.keyframe_weak_inliers", "must be >= 0");
+  }
   if (!(close_depth_baselines > 0.0)) {
     throw OptionError("tracker.close_depth_baselines", "must be > 0");
   }
@@ -202,7 +208,7 @@ TrackingResult Tracker::track(const Frame& frame) {
     if (mono_initializer_) mono_initializer_->reset();
   } else {
     result.state = TrackingState::kTracking;
-    if (needKeyFrame(frame, result.inliers)) {
+    if (needKeyFrame(frame, result.inliers) && mappingAcceptsKeyFrame(frame, result.inliers)) {
       addKeyFrameAndMap(frame, tracked, prediction, result);
     }
   }
@@ -460,13 +466,27 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
 
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
+  const TimeNs since_keyframe = frame.t_ns - t_reference_ns_;
   if (imu_ && (isMonocular() || !inertialInitialized()) &&
-      frame.t_ns - t_reference_ns_ < secondsToNs(options_.imu_min_keyframe_interval_s)) {
+      since_keyframe < secondsToNs(options_.imu_min_keyframe_interval_s)) {
     return false;
   }
-  if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
+  if (since_keyframe < secondsToNs(options_.keyframe_min_interval_s) && !weakTracking(inliers)) {
+    return false;
+  }
+  if (since_keyframe >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
+}
+
+bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {
+  if (!mapping_sink_ || !isMonocular() || !mapping_sink_->busy()) return true;
+  // The mapper still works on the previous keyframe (its new points are not in the map yet).
+  const bool overdue =
+      frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s);
+  if (!weakTracking(inliers) && !overdue) return false;  // asked again at the next frame
+  mapping_sink_->waitIdle();
+  return true;
 }
 
 int Tracker::referenceTrackedPoints() const {

@@ -15,6 +15,13 @@
 // map metric and gravity-aligned; until then the IMU only predicts rotations. Keyframes of a
 // monocular-inertial map are always at least imu_min_keyframe_interval_s apart (ORB-SLAM3 inserts
 // them every 0.25-0.5 s): more frequent ones add little parallax and cost local BA time.
+//
+// Monocular maps with a mapping thread (MappingSink): tracking needs the points the mapper
+// triangulates from the previous keyframe, so the tracker never runs more than one keyframe ahead
+// of the mapper (ORB-SLAM: keyframes are refused while local mapping is busy). While the mapper
+// still works on a keyframe, a new one is refused unless tracking is weak (fewer than
+// keyframe_weak_inliers inliers) or keyframe_max_interval_s has passed since the last one; then the
+// tracker waits for the mapper to finish before it inserts the keyframe.
 
 #include <Eigen/Core>
 #include <functional>
@@ -44,9 +51,16 @@ struct TrackerOptions {
   optim::PoseOptimizerOptions pose;             ///< Motion-only BA.
   int min_inliers = 15;                         ///< Fewer pose inliers = tracking lost, >= 3.
   int local_keyframes = 10;  ///< Covisible keyframes whose points form the local map, >= 0.
-  double keyframe_tracked_ratio = 0.75;    ///< New keyframe below this share of the ref's points.
-  double keyframe_max_interval_s = 0.5;    ///< New keyframe at least this often [s], > 0.
-  int keyframe_min_tracked = 150;          ///< New keyframe when fewer inliers than this, >= 0.
+  double keyframe_tracked_ratio = 0.75;  ///< New keyframe below this share of the ref's points.
+  double keyframe_max_interval_s = 0.5;  ///< New keyframe at least this often [s], > 0.
+  int keyframe_min_tracked = 150;        ///< New keyframe when fewer inliers than this, >= 0.
+  /// No new keyframe sooner than this after the previous one [s], >= 0, unless tracking is weak
+  /// (fewer than keyframe_weak_inliers inliers). Monocular maps need it: without a busy mapping
+  /// thread (deterministic pipeline) the tracked-ratio test alone fires at almost every frame.
+  double keyframe_min_interval_s = 0.0;
+  /// Tracking this weak (fewer inliers) overrides keyframe_min_interval_s and, monocular with a
+  /// mapping thread, makes the tracker wait for a busy mapper to insert a keyframe, >= 0.
+  int keyframe_weak_inliers = 75;
   int keyframe_min_stereo = 50;            ///< Stereo keypoints a new keyframe needs, >= 0.
   double close_depth_baselines = 40.0;     ///< New points: depth below this many baselines, > 0.
   int min_new_points = 300;                ///< ... or at least the this many closest stereo points.
@@ -113,6 +127,8 @@ class MappingSink {
   virtual void discardPending() = 0;
   /// Returns once every job submitted so far has run (the map is quiet until the next submit).
   virtual void waitIdle() = 0;
+  /// A job is queued or running.
+  virtual bool busy() const = 0;
 };
 
 class Tracker {
@@ -184,6 +200,10 @@ class Tracker {
       const Frame& frame, const std::vector<LocalPoint>& points,
       const std::vector<features::Match>& matches) const;
   bool needKeyFrame(const Frame& frame, int inliers) const;
+  bool weakTracking(int inliers) const { return inliers < options_.keyframe_weak_inliers; }
+  /// Monocular with a mapping thread: whether a wanted keyframe may be inserted now (waits for a
+  /// busy mapper when tracking is weak or the last keyframe is old; refuses it otherwise).
+  bool mappingAcceptsKeyFrame(const Frame& frame, int inliers);
   int referenceTrackedPoints() const;
   map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
                                  const std::vector<map::MapPointId>& tracked,
