@@ -123,6 +123,7 @@ std::map<std::string, Section> sectionsOf(SystemOptions& o) {
         {"imu_translation_prediction", boolSetter(t.imu_translation_prediction)},
         {"imu_rotation_prior_sigma_deg", doubleSetter(t.imu_rotation_prior_sigma_deg)},
         {"imu_min_keyframe_interval_s", doubleSetter(t.imu_min_keyframe_interval_s)},
+        {"imu_bridge_s", doubleSetter(t.imu_bridge_s)},
         {"imu_prior_velocity_sigma", doubleSetter(t.imu_prior.velocity_sigma)},
         {"imu_prior_position_sigma_m", doubleSetter(t.imu_prior.position_sigma_m)},
         {"imu_prior_rotation_sigma_deg", doubleSetter(t.imu_prior.rotation_sigma_deg)}}},

@@ -34,7 +34,7 @@ void MonoInitializerOptions::validate() const {
     throw OptionError("mono_init.max_reference_age_s", "must be > 0");
   }
   if (!(sigma0_px > 0.0)) throw OptionError("mono_init.sigma0_px", "must be > 0");
-  if (!(scale_factor > 1.0)) throw OptionError("mono_init.scale_factor", "must be > 1");
+  if (!(scale_factor >= 1.0)) throw OptionError("mono_init.scale_factor", "must be >= 1");
 }
 
 namespace {

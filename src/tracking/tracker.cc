@@ -53,6 +53,7 @@ void TrackerOptions::validate() const {
   }
   mono_init.validate();
   imu_prior.validate();
+  if (!(imu_bridge_s >= 0.0)) throw OptionError("tracker.imu_bridge_s", "must be >= 0");
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
     throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
   }
@@ -68,6 +69,8 @@ const char* toString(TrackingState state) {
       return "lost";
     case TrackingState::kInitializing:
       return "initializing";
+    case TrackingState::kRecentlyLost:
+      return "recently-lost";
   }
   return "?";
 }
@@ -202,12 +205,15 @@ TrackingResult Tracker::track(const Frame& frame) {
   }
   const std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result);
   result.times.track_ms = millisecondsSince(start);
-  if (result.inliers < options_.min_inliers) {
+  if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
+    result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
+  } else if (result.inliers < options_.min_inliers) {
     has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
     result.state = TrackingState::kLost;
     if (mono_initializer_) mono_initializer_->reset();
   } else {
     result.state = TrackingState::kTracking;
+    t_tracked_ns_ = frame.t_ns;
     if (needKeyFrame(frame, result.inliers) && mappingAcceptsKeyFrame(frame, result.inliers)) {
       addKeyFrameAndMap(frame, tracked, prediction, result);
     }
@@ -477,6 +483,11 @@ bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (since_keyframe >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
+}
+
+bool Tracker::canBridgeWithImu(const Frame& frame, const Prediction& prediction) const {
+  return prediction.inertial.has_value() &&
+         frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.imu_bridge_s);
 }
 
 bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {

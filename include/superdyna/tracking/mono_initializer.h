@@ -45,7 +45,7 @@ struct MonoInitializerOptions {
   /// A reference older than this without initialisation is replaced by the current frame [s].
   double max_reference_age_s = 1.0;
   double sigma0_px = 1.0;     ///< Keypoint standard deviation at octave 0 [px], > 0.
-  double scale_factor = 1.2;  ///< Pyramid scale between octaves, > 1.
+  double scale_factor = 1.2;  ///< Pyramid scale between octaves, >= 1 (1: one level).
 
   /// Throws OptionError naming the first invalid field (prefix "mono_init.").
   void validate() const;

@@ -78,11 +78,18 @@ struct TrackerOptions {
   double imu_min_keyframe_interval_s = 0.25;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
+  /// After the inertial initialisation, tracking failures keep the map and report the IMU
+  /// prediction (kRecentlyLost) for up to this long after the last tracked frame [s], >= 0; the
+  /// next frames are tracked against the map from the prediction. Only longer failures start a new
+  /// map (monocular: at a new, arbitrary scale). 0 = a new map at the first failure.
+  double imu_bridge_s = 3.0;
   void validate() const;
 };
 
 /// kInitializing: a monocular map is being initialised; the frame has no pose estimate.
-enum class TrackingState { kTracking, kInitialized, kLost, kInitializing };
+/// kRecentlyLost: tracking failed on a map whose IMU is initialised; the pose is the IMU
+/// prediction and the map is kept (ORB-SLAM3's RECENTLY_LOST), see TrackerOptions::imu_bridge_s.
+enum class TrackingState { kTracking, kInitialized, kLost, kInitializing, kRecentlyLost };
 const char* toString(TrackingState state);
 
 struct StageTimes {
@@ -200,6 +207,8 @@ class Tracker {
       const Frame& frame, const std::vector<LocalPoint>& points,
       const std::vector<features::Match>& matches) const;
   bool needKeyFrame(const Frame& frame, int inliers) const;
+  /// Whether a tracking failure at `frame` may be bridged by the IMU prediction (kRecentlyLost).
+  bool canBridgeWithImu(const Frame& frame, const Prediction& prediction) const;
   bool weakTracking(int inliers) const { return inliers < options_.keyframe_weak_inliers; }
   /// Monocular with a mapping thread: whether a wanted keyframe may be inserted now (waits for a
   /// busy mapper when tracking is weak or the last keyframe is old; refuses it otherwise).
@@ -242,6 +251,7 @@ class Tracker {
   TimeNs t_last_ns_ = 0;
   map::KeyFrameId reference_ = map::kNoKeyFrame;
   TimeNs t_reference_ns_ = 0;
+  TimeNs t_tracked_ns_ = 0;  ///< The last frame tracked against the map.
   int resets_ = 0;
 
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
