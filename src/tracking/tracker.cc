@@ -495,7 +495,9 @@ bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {
   // The mapper still works on the previous keyframe (its new points are not in the map yet).
   const bool overdue =
       frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s);
-  if (!weakTracking(inliers) && !overdue) return false;  // asked again at the next frame
+  if (!options_.mono_wait_for_mapping && !weakTracking(inliers) && !overdue) {
+    return false;  // asked again at the next frame
+  }
   mapping_sink_->waitIdle();
   return true;
 }

@@ -142,6 +142,7 @@ TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
   options.keyframe_tracked_ratio = 0.9;
   options.keyframe_max_interval_s = 0.5;
   options.keyframe_weak_inliers = 0;  // never weak: keyframes only when overdue
+  options.mono_wait_for_mapping = false;
   ManualMappingSink busy(false);
   const MonoRun overdue_only = trackMono(options, &busy);
   EXPECT_EQ(overdue_only.lost, 0);
@@ -162,6 +163,14 @@ TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
   EXPECT_EQ(weak.max_pending_jobs, 2u);
   EXPECT_GE(weak.keyframes.size(), 2 * overdue_only.keyframes.size());
   EXPECT_LT(minKeyFrameGapSeconds(weak), 0.5);
+
+  // Waiting (the default): every wanted keyframe is inserted after the wait, weak or not.
+  options.keyframe_weak_inliers = 0;
+  options.mono_wait_for_mapping = true;
+  const MonoRun waiting = trackMono(options, &busy);
+  EXPECT_EQ(waiting.lost, 0);
+  EXPECT_EQ(waiting.max_pending_jobs, 2u);
+  EXPECT_GE(waiting.keyframes.size(), 2 * overdue_only.keyframes.size());
 }
 
 TEST(MonoTracker, KeyFramesKeepTheMinimumIntervalUnlessTrackingIsWeak) {

@@ -18,10 +18,11 @@
 //
 // Monocular maps with a mapping thread (MappingSink): tracking needs the points the mapper
 // triangulates from the previous keyframe, so the tracker never runs more than one keyframe ahead
-// of the mapper (ORB-SLAM: keyframes are refused while local mapping is busy). While the mapper
-// still works on a keyframe, a new one is refused unless tracking is weak (fewer than
-// keyframe_weak_inliers inliers) or keyframe_max_interval_s has passed since the last one; then the
-// tracker waits for the mapper to finish before it inserts the keyframe.
+// of the mapper. When a keyframe is wanted while the mapper still works on the previous one, the
+// tracker waits for it and then inserts the keyframe (mono_wait_for_mapping, the default: the
+// keyframes are the ones the sequential pipeline would take). Otherwise (ORB-SLAM's real-time
+// policy) the keyframe is refused unless tracking is weak (fewer than keyframe_weak_inliers
+// inliers) or keyframe_max_interval_s has passed since the last one, and only then waited for.
 
 #include <Eigen/Core>
 #include <functional>
@@ -61,6 +62,9 @@ struct TrackerOptions {
   /// Tracking this weak (fewer inliers) overrides keyframe_min_interval_s and, monocular with a
   /// mapping thread, makes the tracker wait for a busy mapper to insert a keyframe, >= 0.
   int keyframe_weak_inliers = 75;
+  /// Monocular with a mapping thread: a keyframe wanted while the mapper is busy waits for it
+  /// (true) or is refused unless tracking is weak or the last keyframe is overdue (false).
+  bool mono_wait_for_mapping = true;
   int keyframe_min_stereo = 50;            ///< Stereo keypoints a new keyframe needs, >= 0.
   double close_depth_baselines = 40.0;     ///< New points: depth below this many baselines, > 0.
   int min_new_points = 300;                ///< ... or at least the this many closest stereo points.
@@ -211,7 +215,7 @@ class Tracker {
   bool canBridgeWithImu(const Frame& frame, const Prediction& prediction) const;
   bool weakTracking(int inliers) const { return inliers < options_.keyframe_weak_inliers; }
   /// Monocular with a mapping thread: whether a wanted keyframe may be inserted now (waits for a
-  /// busy mapper when tracking is weak or the last keyframe is old; refuses it otherwise).
+  /// busy mapper first; see mono_wait_for_mapping for when it is refused instead).
   bool mappingAcceptsKeyFrame(const Frame& frame, int inliers);
   int referenceTrackedPoints() const;
   map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
