@@ -117,6 +117,7 @@ std::map<std::string, Section> sectionsOf(SystemOptions& o) {
         {"keyframe_min_interval_s", doubleSetter(t.keyframe_min_interval_s)},
         {"keyframe_weak_inliers", intSetter(t.keyframe_weak_inliers)},
         {"mono_wait_for_mapping", boolSetter(t.mono_wait_for_mapping)},
+        {"mono_inertial_wait_for_keyframe_ba", boolSetter(t.mono_inertial_wait_for_keyframe_ba)},
         {"keyframe_min_stereo", intSetter(t.keyframe_min_stereo)},
         {"close_depth_baselines", doubleSetter(t.close_depth_baselines)},
         {"min_new_points", intSetter(t.min_new_points)},

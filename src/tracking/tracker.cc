@@ -272,6 +272,10 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
   result.keyframe = true;
   if (mapping_sink_) {
     mapping_sink_->submit([this, map = map_.get(), id] { mapper_.processKeyFrame(*map, id); });
+    if (options_.mono_inertial_wait_for_keyframe_ba && isMonocular() && inertialInitialized()) {
+      mapping_sink_->waitIdle();  // the next predictions start from this keyframe's refined state
+      result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
+    }
   } else {
     mapper_.processKeyFrame(*map_, id);
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);

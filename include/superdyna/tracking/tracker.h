@@ -65,6 +65,10 @@ struct TrackerOptions {
   /// Monocular with a mapping thread: a keyframe wanted while the mapper is busy waits for it
   /// (true) or is refused unless tracking is weak or the last keyframe is overdue (false).
   bool mono_wait_for_mapping = true;
+  /// Monocular with a mapping thread, once the IMU is initialised: tracking waits for the local
+  /// BA of each new keyframe. The IMU prediction (and its pose prior) starts from the newest
+  /// keyframe's state; unrefined (tracked pose, predicted velocity), it lost track on V1_02.
+  bool mono_inertial_wait_for_keyframe_ba = true;
   int keyframe_min_stereo = 50;            ///< Stereo keypoints a new keyframe needs, >= 0.
   double close_depth_baselines = 40.0;     ///< New points: depth below this many baselines, > 0.
   int min_new_points = 300;                ///< ... or at least the this many closest stereo points.
