@@ -70,25 +70,26 @@ KeyFrameChain latestChain(const map::Map& map, const imu::ImuNoise& noise) {
   return chain;
 }
 
-/// RMS deviation of the keyframe accelerations (second differences of the positions) from their
-/// mean [visual units / s^2]: how much the motion excites the scale.
-double accelerationExcitation(const KeyFrameChain& chain) {
-  std::vector<Eigen::Vector3d> accelerations;
-  for (std::size_t k = 1; k + 1 < chain.ids.size(); ++k) {
-    const double dt0 = nsToSeconds(chain.t_ns[k] - chain.t_ns[k - 1]);
-    const double dt1 = nsToSeconds(chain.t_ns[k + 1] - chain.t_ns[k]);
-    const Eigen::Vector3d v0 = (chain.T_w_b[k].t - chain.T_w_b[k - 1].t) / dt0;
-    const Eigen::Vector3d v1 = (chain.T_w_b[k + 1].t - chain.T_w_b[k].t) / dt1;
-    accelerations.push_back((v1 - v0) / (0.5 * (dt0 + dt1)));
+/// RMS deviation of the keyframe intervals' mean specific force, rotated into the world frame by
+/// the keyframe orientations, from its mean [m/s^2]. Gravity is the same in every interval, so
+/// this measures how much the true (metric) acceleration varies: how well the motion excites the
+/// scale. Unlike the visual accelerations it needs no metric map; rotations are scale-free.
+double specificForceExcitation(const KeyFrameChain& chain, const SE3d& T_b_i) {
+  std::vector<Eigen::Vector3d> forces;
+  for (std::size_t k = 0; k < chain.preintegrations.size(); ++k) {
+    const imu::Preintegration& pre = chain.preintegrations[k];
+    if (!(pre.deltaTime() > 0.0)) continue;
+    const Eigen::Matrix3d R_w_i = chain.T_w_b[k].rotation() * T_b_i.rotation();
+    forces.push_back(R_w_i * pre.deltaVelocity() / pre.deltaTime());
   }
-  if (accelerations.empty()) return 0.0;
+  if (forces.size() < 2) return 0.0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& a : accelerations)
-    mean += a / static_cast<double>(accelerations.size());
+  for (const auto& f : forces)
+    mean += f / static_cast<double>(forces.size());
   double sum = 0.0;
-  for (const auto& a : accelerations)
-    sum += (a - mean).squaredNorm();
-  return std::sqrt(sum / static_cast<double>(accelerations.size()));
+  for (const auto& f : forces)
+    sum += (f - mean).squaredNorm();
+  return std::sqrt(sum / static_cast<double>(forces.size()));
 }
 
 /// Largest rotation angle of a keyframe relative to the first [deg].
@@ -133,10 +134,11 @@ InertialMapInitResult initializeInertialMap(map::Map& map, const SE3d& T_b_i,
     return result;
   }
   if (options.estimate_scale) {
-    const double excitation = accelerationExcitation(chain);
+    const double excitation = specificForceExcitation(chain, T_b_i);
     if (excitation < options.min_scale_excitation) {
-      result.reason = fmt::format("acceleration excitation {:.3f} below {:.3f}: scale unobservable",
-                                  excitation, options.min_scale_excitation);
+      result.reason =
+          fmt::format("acceleration excitation {:.3f} below {:.3f} m/s^2: scale unobservable",
+                      excitation, options.min_scale_excitation);
       return result;
     }
   }

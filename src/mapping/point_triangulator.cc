@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "superdyna/core/error.h"
@@ -13,6 +14,9 @@ namespace superdyna::mapping {
 void PointTriangulatorOptions::validate() const {
   if (neighbours < 1) throw OptionError("mapping.triangulation_neighbours", "must be >= 1");
   if (max_distance < 0) throw OptionError("mapping.triangulation_max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) {
+    throw OptionError("mapping.triangulation_max_l2_distance", "must be >= 0");
+  }
   if (!(ratio > 0.0 && ratio <= 1.0)) {
     throw OptionError("mapping.triangulation_ratio", "must be in (0, 1]");
   }
@@ -44,9 +48,9 @@ namespace {
 /// Nearest and second-nearest candidate by descriptor distance.
 struct BestTwo {
   int index = -1;
-  int distance = std::numeric_limits<int>::max();
-  int second = std::numeric_limits<int>::max();
-  void offer(int candidate, int d) {
+  double distance = std::numeric_limits<double>::max();
+  double second = std::numeric_limits<double>::max();
+  void offer(int candidate, double d) {
     if (d < distance) {
       second = distance;
       distance = d;
@@ -56,6 +60,15 @@ struct BestTwo {
     }
   }
 };
+
+/// Distance of descriptor row i of `a` and row j of `b` (one type and length, as the map's
+/// keyframes all come from one extractor).
+double descriptorDistance(const cv::Mat& a, int i, const cv::Mat& b, int j) {
+  if (a.type() == CV_8UC1) {
+    return features::hammingDistance(a.ptr<std::uint8_t>(i), b.ptr<std::uint8_t>(j), a.cols);
+  }
+  return features::l2Distance(a.ptr<float>(i), b.ptr<float>(j), a.cols);
+}
 
 /// Median depth (camera z) of the keyframe's map points; nullopt when it has none.
 std::optional<double> medianSceneDepth(const map::Map& map, const map::KeyFrame& keyframe,
@@ -126,15 +139,18 @@ std::vector<map::MapPointId> PointTriangulator::triangulatePair(map::Map& map, V
   const map::KeyFrame& kc = current.keyframe;
   const map::KeyFrame& kn = neighbour.keyframe;
   // best[j]: the current keypoint matched to neighbour keypoint j (each used at most once).
-  std::vector<std::pair<int, int>> best_for_neighbour(kn.size(),
-                                                      {-1, std::numeric_limits<int>::max()});
+  std::vector<std::pair<int, double>> best_for_neighbour(kn.size(),
+                                                         {-1, std::numeric_limits<double>::max()});
+  // Binary descriptors (ORB): Hamming distance [bits]; float ones (learned): Euclidean.
+  const bool binary = kc.descriptors.type() == CV_8UC1;
+  const double max_distance = binary ? options_.max_distance : options_.max_l2_distance;
   for (std::size_t i = 0; i < kc.size(); ++i) {
     if (!current.free[i]) continue;
     const Eigen::Vector3d line = E * homogeneous(kc.keypoints[i].normalized);
     const double line_norm = line.head<2>().norm();
     if (!(line_norm > 0.0)) continue;
     BestTwo best;
-    const cv::Mat row_c = kc.descriptors.row(static_cast<int>(i));
+    const int row_c = static_cast<int>(i);
     for (std::size_t j = 0; j < kn.size(); ++j) {
       if (!neighbour.free[j]) continue;
       const map::KeyFrameKeypoint& k = kn.keypoints[j];
@@ -147,10 +163,10 @@ std::vector<map::MapPointId> PointTriangulator::triangulatePair(map::Map& map, V
         continue;
       }
       best.offer(static_cast<int>(j),
-                 features::hammingDistance(row_c, kn.descriptors.row(static_cast<int>(j))));
+                 descriptorDistance(kc.descriptors, row_c, kn.descriptors, static_cast<int>(j)));
     }
-    if (best.index < 0 || best.distance > options_.max_distance) continue;
-    if (best.second != std::numeric_limits<int>::max() &&
+    if (best.index < 0 || best.distance > max_distance) continue;
+    if (best.second != std::numeric_limits<double>::max() &&
         best.distance >= options_.ratio * best.second) {
       continue;
     }

@@ -66,6 +66,11 @@ void MappingWorker::waitIdle() {
   rethrowError();
 }
 
+bool MappingWorker::busy() const {
+  const std::lock_guard lock(mutex_);
+  return unfinished_ > 0;
+}
+
 void MappingWorker::finish() {
   if (thread_.joinable()) {
     queue_->close();

@@ -17,6 +17,7 @@ void MonoInitializerOptions::validate() const {
   if (min_matches < 8) throw OptionError("mono_init.min_matches", "must be >= 8");
   if (!(search_radius_px > 0.0)) throw OptionError("mono_init.search_radius_px", "must be > 0");
   if (max_distance < 0) throw OptionError("mono_init.max_distance", "must be >= 0");
+  if (!(max_l2_distance >= 0.0)) throw OptionError("mono_init.max_l2_distance", "must be >= 0");
   if (!(ratio > 0.0 && ratio <= 1.0)) throw OptionError("mono_init.ratio", "must be in (0, 1]");
   if (!(ransac_threshold_px > 0.0)) {
     throw OptionError("mono_init.ransac_threshold_px", "must be > 0");
@@ -33,7 +34,7 @@ void MonoInitializerOptions::validate() const {
     throw OptionError("mono_init.max_reference_age_s", "must be > 0");
   }
   if (!(sigma0_px > 0.0)) throw OptionError("mono_init.sigma0_px", "must be > 0");
-  if (!(scale_factor > 1.0)) throw OptionError("mono_init.scale_factor", "must be > 1");
+  if (!(scale_factor >= 1.0)) throw OptionError("mono_init.scale_factor", "must be >= 1");
 }
 
 namespace {
@@ -316,6 +317,7 @@ std::vector<features::Match> MonoInitializer::matchToReference(const Frame& fram
   features::ProjectionMatchOptions window;
   window.radius_px = options_.search_radius_px;
   window.max_distance = options_.max_distance;
+  window.max_l2_distance = options_.max_l2_distance;
   window.ratio = options_.ratio;
   window.check_orientation = true;
   const features::KeypointGrid grid(frame.features.keypoints, frame.features.image_size);

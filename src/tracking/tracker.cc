@@ -39,6 +39,12 @@ void TrackerOptions::validate() const {
   }
   if (keyframe_min_tracked < 0) throw OptionError("tracker.keyframe_min_tracked", "must be >= 0");
   if (keyframe_min_stereo < 0) throw OptionError("tracker.keyframe_min_stereo", "must be >= 0");
+  if (!(keyframe_min_interval_s >= 0.0)) {
+    throw OptionError("tracker.keyframe_min_interval_s", "must be >= 0");
+  }
+  if (keyframe_weak_inliers < 0) {
+    throw OptionError("tracker.keyframe_weak_inliers", "must be >= 0");
+  }
   if (!(close_depth_baselines > 0.0)) {
     throw OptionError("tracker.close_depth_baselines", "must be > 0");
   }
@@ -48,6 +54,7 @@ void TrackerOptions::validate() const {
   }
   mono_init.validate();
   imu_prior.validate();
+  if (!(imu_bridge_s >= 0.0)) throw OptionError("tracker.imu_bridge_s", "must be >= 0");
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
     throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
   }
@@ -63,6 +70,8 @@ const char* toString(TrackingState state) {
       return "lost";
     case TrackingState::kInitializing:
       return "initializing";
+    case TrackingState::kRecentlyLost:
+      return "recently-lost";
   }
   return "?";
 }
@@ -197,13 +206,16 @@ TrackingResult Tracker::track(const Frame& frame) {
   }
   const std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result);
   result.times.track_ms = millisecondsSince(start);
-  if (result.inliers < options_.min_inliers) {
+  if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
+    result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
+  } else if (result.inliers < options_.min_inliers) {
     has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
     result.state = TrackingState::kLost;
     if (mono_initializer_) mono_initializer_->reset();
   } else {
     result.state = TrackingState::kTracking;
-    if (needKeyFrame(frame, result.inliers)) {
+    t_tracked_ns_ = frame.t_ns;
+    if (needKeyFrame(frame, result.inliers) && mappingAcceptsKeyFrame(frame, result.inliers)) {
       addKeyFrameAndMap(frame, tracked, prediction, result);
     }
   }
@@ -290,6 +302,10 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
   result.keyframe = true;
   if (mapping_sink_) {
     mapping_sink_->submit([this, map = map_.get(), id] { mapper_.processKeyFrame(*map, id); });
+    if (options_.mono_inertial_wait_for_keyframe_ba && isMonocular() && inertialInitialized()) {
+      mapping_sink_->waitIdle();  // the next predictions start from this keyframe's refined state
+      result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
+    }
   } else {
     mapper_.processKeyFrame(*map_, id);
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
@@ -490,13 +506,34 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
 
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
+  const TimeNs since_keyframe = frame.t_ns - t_reference_ns_;
   if (imu_ && (isMonocular() || !inertialInitialized()) &&
-      frame.t_ns - t_reference_ns_ < secondsToNs(options_.imu_min_keyframe_interval_s)) {
+      since_keyframe < secondsToNs(options_.imu_min_keyframe_interval_s)) {
     return false;
   }
-  if (frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s)) return true;
+  if (since_keyframe < secondsToNs(options_.keyframe_min_interval_s) && !weakTracking(inliers)) {
+    return false;
+  }
+  if (since_keyframe >= secondsToNs(options_.keyframe_max_interval_s)) return true;
   if (inliers < options_.keyframe_min_tracked) return true;
   return inliers < options_.keyframe_tracked_ratio * referenceTrackedPoints();
+}
+
+bool Tracker::canBridgeWithImu(const Frame& frame, const Prediction& prediction) const {
+  return prediction.inertial.has_value() &&
+         frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.imu_bridge_s);
+}
+
+bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {
+  if (!mapping_sink_ || !isMonocular() || !mapping_sink_->busy()) return true;
+  // The mapper still works on the previous keyframe (its new points are not in the map yet).
+  const bool overdue =
+      frame.t_ns - t_reference_ns_ >= secondsToNs(options_.keyframe_max_interval_s);
+  if (!options_.mono_wait_for_mapping && !weakTracking(inliers) && !overdue) {
+    return false;  // asked again at the next frame
+  }
+  mapping_sink_->waitIdle();
+  return true;
 }
 
 int Tracker::referenceTrackedPoints() const {

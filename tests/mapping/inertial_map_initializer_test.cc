@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
+#include <vector>
+
 #include "mapping/mapping_test_scene.h"
 #include "superdyna/core/error.h"
 
@@ -105,6 +108,41 @@ TEST(InertialMapInitializerTest, RefusesTooFewOrTooShortKeyframes) {
   EXPECT_FALSE(short_span.applied);
   EXPECT_NE(short_span.reason.find("1.25 s"), std::string::npos) << short_span.reason;
   EXPECT_EQ(scene.map->keyFramePose(scene.ids.back())->t, before.t);
+}
+
+/// The excitation a refused scale estimation reports ("acceleration excitation X below ...").
+double reportedExcitation(const InertialMapInitResult& result) {
+  const std::string prefix = "acceleration excitation ";
+  const std::size_t at = result.reason.find(prefix);
+  if (at == std::string::npos) return -1.0;
+  return std::stod(result.reason.substr(at + prefix.size()));
+}
+
+TEST(InertialMapInitializerTest, ScaleExcitationIsMetricWhateverTheVisualScale) {
+  // The same motion mapped at visual scales 10x apart: the IMU-measured excitation, and so the
+  // decision, is the same (a threshold in visual units would refuse one and accept the other).
+  std::vector<double> excitations;
+  for (const double scale : {0.5, 5.0}) {
+    SceneOptions scene_options;
+    scene_options.T_v_w = visualFrame();
+    scene_options.scale = scale;
+    test::MappingScene scene = makeMappingScene(scene_options);
+    InertialMapInitOptions options = looseBiasPriors();
+    options.estimate_scale = true;
+    options.min_scale_excitation = 100.0;  // m/s^2: far more than any flight
+    const InertialMapInitResult refused =
+        initializeInertialMap(*scene.map, SE3d(), scene.noise, options);
+    EXPECT_FALSE(refused.applied);
+    EXPECT_NE(refused.reason.find("below 100.000 m/s^2"), std::string::npos) << refused.reason;
+    excitations.push_back(reportedExcitation(refused));
+    ASSERT_GT(excitations.back(), 0.1) << refused.reason;  // the lively motion excites the scale
+    options.min_scale_excitation = 0.5 * excitations.back();
+    const InertialMapInitResult applied =
+        initializeInertialMap(*scene.map, SE3d(), scene.noise, options);
+    ASSERT_TRUE(applied.applied) << applied.reason;
+    EXPECT_NEAR(applied.T_new_old.s, scale, 0.01 * scale);
+  }
+  EXPECT_NEAR(excitations[0], excitations[1], 1e-3);
 }
 
 TEST(InertialMapInitializerTest, RejectsInvalidOptions) {

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
 #include <random>
 
 #include "superdyna/core/error.h"
@@ -29,17 +30,25 @@ class TwoKeyFrameScene : public ::testing::Test {
       const double z = depth(rng);
       points.emplace_back(xy(rng) * z, xy(rng) * z, z);
     }
-    cv::Mat descriptors(n, 32, CV_8UC1);
-    for (int r = 0; r < n; ++r)
-      for (int c = 0; c < 32; ++c)
-        descriptors.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+    cv::Mat descriptors = floatDescriptors() ? cv::Mat(n, 64, CV_32FC1) : cv::Mat(n, 32, CV_8UC1);
+    std::normal_distribution<float> component(0.0f, 1.0f);
+    for (int r = 0; r < n; ++r) {
+      if (floatDescriptors()) {
+        for (int c = 0; c < 64; ++c)
+          descriptors.at<float>(r, c) = component(rng);
+        cv::normalize(descriptors.row(r), descriptors.row(r));  // unit norm, as XFeat's
+      } else {
+        for (int c = 0; c < 32; ++c)
+          descriptors.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+      }
+    }
     // The body is the camera here; keyframe 1 moved 0.4 m sideways and turned slightly.
     poses = {SE3d(), SE3d(expSO3(Eigen::Vector3d(0.0, -0.05, 0.0)), Eigen::Vector3d(0.4, 0, 0.05))};
     // Keyframe 1 lists its keypoints in reverse order, so indices differ between the two.
     for (int k = 0; k < 2; ++k) {
       map::KeyFrame kf;
       kf.T_w_b = poses[k];
-      kf.descriptors = cv::Mat(n, 32, CV_8UC1);
+      kf.descriptors = cv::Mat(n, descriptors.cols, descriptors.type());
       for (int j = 0; j < n; ++j) {
         const int i = k == 0 ? j : n - 1 - j;
         const Eigen::Vector3d p_c = poses[k].inverse() * points[static_cast<std::size_t>(i)];
@@ -48,6 +57,12 @@ class TwoKeyFrameScene : public ::testing::Test {
         keypoint.pixel = kFocalPx * keypoint.normalized + Eigen::Vector2d(376, 240);
         kf.keypoints.push_back(keypoint);
         descriptors.row(i).copyTo(kf.descriptors.row(j));
+        if (floatDescriptors() && k == 1) {
+          // The second view sees each point a little differently (distance about 0.16).
+          for (int c = 0; c < kf.descriptors.cols; ++c)
+            kf.descriptors.at<float>(j, c) += 0.02f * component(rng);
+          cv::normalize(kf.descriptors.row(j), kf.descriptors.row(j));
+        }
       }
       ids[k] = map.addKeyFrame(std::move(kf));
     }
@@ -60,6 +75,9 @@ class TwoKeyFrameScene : public ::testing::Test {
       map.addObservation(id, ids[1], n - 1 - i);
     }
   }
+
+  /// Float descriptors (learned extractors, Euclidean distance) instead of binary ones.
+  virtual bool floatDescriptors() const { return false; }
 
   optim::ReprojectionCamera camera() const {
     optim::ReprojectionCamera c;
@@ -95,6 +113,33 @@ TEST_F(TwoKeyFrameScene, TriangulatesTheFreeKeypointsAtTheirTruePositions) {
   EXPECT_TRUE(triangulator.createPoints(map, ids[1]).empty());
 }
 
+class TwoKeyFrameFloatScene : public TwoKeyFrameScene {
+ protected:
+  bool floatDescriptors() const override { return true; }
+};
+
+TEST_F(TwoKeyFrameFloatScene, MatchesFloatDescriptorsByEuclideanDistance) {
+  PointTriangulatorOptions options;
+  options.max_distance = 0;  // the Hamming bound does not apply to float descriptors
+  const PointTriangulator triangulator(options, camera());
+  const std::vector<map::MapPointId> created = triangulator.createPoints(map, ids[1]);
+  EXPECT_GT(static_cast<int>(created.size()), 170);
+  const int n = kShared + kFree;
+  for (const map::MapPointId id : created) {
+    const auto point = map.mapPoint(id);
+    ASSERT_TRUE(point);
+    const int index0 = point->observations.at(ids[0]);
+    EXPECT_EQ(point->observations.at(ids[1]), n - 1 - index0);
+    EXPECT_LT((point->p_w - points[static_cast<std::size_t>(index0)]).norm(), 1e-6);
+  }
+}
+
+TEST_F(TwoKeyFrameFloatScene, TheEuclideanBoundRejectsDistantDescriptors) {
+  PointTriangulatorOptions options;
+  options.max_l2_distance = 0.05;  // below the views' descriptor differences
+  EXPECT_EQ(PointTriangulator(options, camera()).createPoints(map, ids[1]).size(), 0u);
+}
+
 TEST_F(TwoKeyFrameScene, SkipsNeighboursWithoutBaseline) {
   map.setKeyFramePose(ids[1], SE3d(poses[1].q, Eigen::Vector3d(0.001, 0, 0)));
   const PointTriangulator triangulator({}, camera());
@@ -115,6 +160,9 @@ TEST(PointTriangulatorOptions, RejectsBadValues) {
   options = {};
   options.ratio = 0.0;
   test::expectError<OptionError>([&] { options.validate(); }, {"triangulation_ratio"});
+  options = {};
+  options.max_l2_distance = -1.0;
+  test::expectError<OptionError>([&] { options.validate(); }, {"triangulation_max_l2_distance"});
 }
 
 }  // namespace

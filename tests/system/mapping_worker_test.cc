@@ -92,6 +92,21 @@ TEST(MappingWorker, DiscardPendingDropsQueuedJobsAndWaitsForTheRunningOne) {
   EXPECT_EQ(later_runs.load(), 10);  // the three queued jobs were dropped
 }
 
+TEST(MappingWorker, IsBusyFromSubmitUntilTheLastJobEnds) {
+  MappingWorker worker(4);
+  EXPECT_FALSE(worker.busy());
+  Gate gate;
+  worker.submit([&] { gate.waitOpen(); });
+  worker.submit([] {});
+  EXPECT_TRUE(worker.busy());
+  gate.waitEntered();
+  EXPECT_TRUE(worker.busy());  // the first job runs, the second waits
+  gate.release();
+  worker.waitIdle();
+  EXPECT_FALSE(worker.busy());
+  worker.finish();
+}
+
 TEST(MappingWorker, AJobErrorReachesTheSubmitter) {
   MappingWorker worker(1);
   worker.submit([] { throw std::runtime_error("local BA failed"); });

@@ -223,7 +223,8 @@ TEST(OptionsFile, ReadsTheFeaturesSection) {
 TEST(ShippedConfigs, Load) {
   for (const char* name :
        {"euroc_stereo.yaml", "euroc_stereo_inertial.yaml", "kitti_stereo.yaml", "euroc_mono.yaml",
-        "euroc_mono_inertial.yaml", "kitti_mono.yaml", "euroc_stereo_inertial_xfeat.yaml"}) {
+        "euroc_mono_inertial.yaml", "kitti_mono.yaml", "euroc_stereo_inertial_xfeat.yaml",
+        "euroc_stereo_xfeat.yaml", "euroc_mono_xfeat.yaml", "euroc_mono_inertial_xfeat.yaml"}) {
     const fs::path file = fs::path(SUPERDYNA_SOURCE_DIR) / "configs" / name;
     EXPECT_NO_THROW(loadSystemOptions(file)) << file;
   }
@@ -278,6 +279,56 @@ TEST(StereoSlam, RecoversFromLostTrackingWithANewMap) {
   EXPECT_LE(lost, 4u);
   EXPECT_EQ(slam.resets(), 1);
   EXPECT_GT(slam.numMapPoints(), 100u);
+}
+
+struct BridgedRun {
+  std::size_t recently_lost = 0;
+  std::size_t lost = 0;
+  int resets = 0;
+  bool initialized_before_gap = false;
+  RunSummary summary;
+};
+
+/// Stereo-inertial over the first 4 s of the street flight with three black frames at 3 s (after
+/// the inertial initialisation).
+BridgedRun runWithBlackFramesAfterInertialInit(double imu_bridge_s) {
+  io::DatasetSourceOptions source_options;
+  source_options.max_frames = 80;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
+  SystemOptions options;
+  options.mode = SensorMode::kStereoInertial;
+  options.tracker.imu_bridge_s = imu_bridge_s;
+  System slam(options, source->camera0(), *source->camera1(), source->imu());
+  BridgedRun run;
+  while (auto frame = source->next()) {
+    if (frame->index == 60) run.initialized_before_gap = slam.inertialInitialized();
+    if (frame->index >= 60 && frame->index < 63) {
+      frame->image0.setTo(0);
+      frame->image1.setTo(0);
+    }
+    const tracking::TrackingResult result = slam.process(*frame);
+    if (result.state == tracking::TrackingState::kRecentlyLost) ++run.recently_lost;
+    if (result.state == tracking::TrackingState::kLost) ++run.lost;
+  }
+  run.resets = slam.resets();
+  run.summary = summaryOf(slam, *source);
+  EXPECT_EQ(slam.lostFrames(), run.lost + run.recently_lost);
+  return run;
+}
+
+TEST(StereoInertialSlam, BridgesAShortTrackingFailureWithTheImu) {
+  const BridgedRun bridged = runWithBlackFramesAfterInertialInit(3.0);
+  ASSERT_TRUE(bridged.initialized_before_gap);
+  EXPECT_EQ(bridged.recently_lost, 3u);  // the IMU prediction, then tracking on the same map
+  EXPECT_EQ(bridged.lost, 0u);
+  EXPECT_EQ(bridged.resets, 0);
+  const double path = pathLength(bridged.summary.ground_truth);
+  EXPECT_LT(ateOf(bridged.summary).ate_trans.rmse, kSyntheticAteBoundFraction * path);
+  // A bridge shorter than the gap (0.1 s: two of the three black frames) ends in a new map.
+  const BridgedRun short_bridge = runWithBlackFramesAfterInertialInit(0.1);
+  EXPECT_EQ(short_bridge.recently_lost, 2u);
+  EXPECT_GE(short_bridge.lost, 1u);
+  EXPECT_EQ(short_bridge.resets, 1);
 }
 
 /// A 3 s street flight (60 frames), cheaper to generate for the tests that need few frames.

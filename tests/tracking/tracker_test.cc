@@ -2,8 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstddef>
+#include <deque>
+#include <functional>
 #include <random>
+#include <utility>
+#include <vector>
 
+#include "superdyna/io/dataset_source.h"
 #include "superdyna/sim/sequence_generator.h"
 #include "superdyna/tracking/front_end.h"
 #include "support/test_support.h"
@@ -36,6 +43,155 @@ FrontEnd makeFrontEnd(const FrontEndOptions& options = {}) {
   return FrontEnd(options, calibrationOf(rig, rig.T_b_c0()), calibrationOf(rig, rig.T_b_c1()));
 }
 
+/// A mapping "thread" that never gets to run on its own: jobs wait until the tracker waits for
+/// them (waitIdle), so from the tracker's point of view local mapping is busy from each keyframe
+/// until it waits. Or, `immediate`, a mapper that runs each job at once (always idle).
+class ManualMappingSink final : public MappingSink {
+ public:
+  explicit ManualMappingSink(bool immediate) : immediate_(immediate) {}
+  void submit(std::function<void()> job) override {
+    if (immediate_) {
+      job();
+      return;
+    }
+    jobs_.push_back(std::move(job));
+  }
+  void discardPending() override { jobs_.clear(); }
+  void waitIdle() override {
+    while (!jobs_.empty()) {
+      std::function<void()> job = std::move(jobs_.front());
+      jobs_.pop_front();
+      job();
+    }
+  }
+  bool busy() const override { return !jobs_.empty(); }
+  std::size_t pending() const { return jobs_.size(); }
+
+ private:
+  bool immediate_;
+  std::deque<std::function<void()>> jobs_;
+};
+
+/// A 3 s street flight, generated once for the monocular tests here.
+const std::filesystem::path& monoSequence() {
+  static test::ScratchDir dir("tracker_test_street");
+  static const bool generated = [] {
+    sim::SimulationOptions options;
+    options.output_dir = dir.path() / "seq";
+    options.overwrite = true;
+    options.motion.duration_s = 3.0;
+    options.world.scene = sim::SceneType::kStreet;
+    options.world.dynamic = sim::DynamicLevel::kNone;
+    options.seed = 7;
+    sim::generateSequence(options);
+    return true;
+  }();
+  static const std::filesystem::path path = dir.path() / "seq";
+  (void)generated;
+  return path;
+}
+
+struct MonoKeyFrame {
+  TimeNs t_ns = 0;
+  int inliers = 0;
+  std::size_t pending_jobs = 0;  ///< Mapping jobs queued after the keyframe's frame.
+};
+
+struct MonoRun {
+  std::vector<MonoKeyFrame> keyframes;  ///< Inserted while tracking (not the two-view ones).
+  int lost = 0;
+  int resets = 0;
+  std::size_t max_pending_jobs = 0;
+};
+
+/// Tracks monoSequence() with a monocular tracker (mapping jobs to `sink`, if any).
+MonoRun trackMono(const TrackerOptions& options, ManualMappingSink* sink) {
+  io::DatasetSourceOptions source_options;
+  source_options.stereo = false;
+  source_options.inertial = false;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, monoSequence(), source_options);
+  FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
+  mapping::LocalMapperOptions mapping;
+  mapping.triangulate = true;
+  Tracker tracker(options, PyramidInfo{}, mapping, source->camera0(), std::nullopt, std::nullopt);
+  tracker.setMappingSink(sink);
+  MonoRun run;
+  while (const auto bundle = source->next()) {
+    const TrackingResult result = tracker.track(front_end.build(*bundle));
+    const std::size_t pending = sink ? sink->pending() : 0;
+    run.max_pending_jobs = std::max(run.max_pending_jobs, pending);
+    if (result.state == TrackingState::kLost) ++run.lost;
+    if (result.keyframe && result.state == TrackingState::kTracking) {
+      run.keyframes.push_back({bundle->t_ns, result.inliers, pending});
+    }
+  }
+  run.resets = tracker.resets();
+  return run;
+}
+
+/// Smallest gap between consecutive tracked keyframes [s].
+double minKeyFrameGapSeconds(const MonoRun& run) {
+  double gap = 1e9;
+  for (std::size_t k = 1; k < run.keyframes.size(); ++k) {
+    gap = std::min(gap, nsToSeconds(run.keyframes[k].t_ns - run.keyframes[k - 1].t_ns));
+  }
+  return gap;
+}
+
+TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
+  TrackerOptions options;
+  options.keyframe_tracked_ratio = 0.9;
+  options.keyframe_max_interval_s = 0.5;
+  options.keyframe_weak_inliers = 0;  // never weak: keyframes only when overdue
+  options.mono_wait_for_mapping = false;
+  ManualMappingSink busy(false);
+  const MonoRun overdue_only = trackMono(options, &busy);
+  EXPECT_EQ(overdue_only.lost, 0);
+  EXPECT_EQ(overdue_only.resets, 0);
+  ASSERT_GE(overdue_only.keyframes.size(), 3u);
+  // Each keyframe leaves exactly its own two jobs (registration, local mapping) queued: the
+  // tracker waited for the previous keyframe's jobs before inserting it.
+  for (const MonoKeyFrame& kf : overdue_only.keyframes)
+    EXPECT_EQ(kf.pending_jobs, 2u);
+  EXPECT_EQ(overdue_only.max_pending_jobs, 2u);
+  // Refused while the mapper is busy: only the overdue ones, 0.5 s (10 frames) apart.
+  EXPECT_GE(minKeyFrameGapSeconds(overdue_only), 0.5 - 1e-6);
+
+  // Weak tracking: the tracker waits for the busy mapper and inserts the keyframe at once.
+  options.keyframe_weak_inliers = 100000;  // always weak
+  const MonoRun weak = trackMono(options, &busy);
+  EXPECT_EQ(weak.lost, 0);
+  EXPECT_EQ(weak.max_pending_jobs, 2u);
+  EXPECT_GE(weak.keyframes.size(), 2 * overdue_only.keyframes.size());
+  EXPECT_LT(minKeyFrameGapSeconds(weak), 0.5);
+
+  // Waiting (the default): every wanted keyframe is inserted after the wait, weak or not.
+  options.keyframe_weak_inliers = 0;
+  options.mono_wait_for_mapping = true;
+  const MonoRun waiting = trackMono(options, &busy);
+  EXPECT_EQ(waiting.lost, 0);
+  EXPECT_EQ(waiting.max_pending_jobs, 2u);
+  EXPECT_GE(waiting.keyframes.size(), 2 * overdue_only.keyframes.size());
+}
+
+TEST(MonoTracker, KeyFramesKeepTheMinimumIntervalUnlessTrackingIsWeak) {
+  TrackerOptions options;
+  options.keyframe_tracked_ratio = 0.9;
+  options.keyframe_min_interval_s = 0.25;
+  options.keyframe_weak_inliers = 0;
+  const MonoRun spaced = trackMono(options, nullptr);
+  EXPECT_EQ(spaced.lost, 0);
+  ASSERT_GE(spaced.keyframes.size(), 3u);
+  EXPECT_GE(minKeyFrameGapSeconds(spaced), 0.25 - 1e-6);
+  // An idle mapper (or none) and no minimum interval: the tracked-ratio test fires more often.
+  options.keyframe_min_interval_s = 0.0;
+  ManualMappingSink idle(true);
+  const MonoRun dense = trackMono(options, &idle);
+  EXPECT_EQ(dense.lost, 0);
+  EXPECT_GT(dense.keyframes.size(), spaced.keyframes.size());
+  EXPECT_LT(minKeyFrameGapSeconds(dense), 0.25);
+}
+
 TEST(TrackerOptions, RejectsBadValues) {
   TrackerOptions options;
   options.min_inliers = 2;
@@ -43,6 +199,12 @@ TEST(TrackerOptions, RejectsBadValues) {
   options = {};
   options.keyframe_tracked_ratio = 1.5;
   test::expectError<OptionError>([&] { options.validate(); }, {"tracker.keyframe_tracked_ratio"});
+  options = {};
+  options.keyframe_min_interval_s = -0.1;
+  test::expectError<OptionError>([&] { options.validate(); }, {"tracker.keyframe_min_interval_s"});
+  options = {};
+  options.keyframe_weak_inliers = -1;
+  test::expectError<OptionError>([&] { options.validate(); }, {"tracker.keyframe_weak_inliers"});
   options = {};
   options.projection.radius_px = 0.0;
   test::expectError<OptionError>([&] { makeTracker(options); }, {"radius"});

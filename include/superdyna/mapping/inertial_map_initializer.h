@@ -33,7 +33,7 @@
 // initialisation, and capped whenever the keyframes rotated less than
 // min_rotation_for_accel_bias_deg) keeps it near zero, so gravity direction, gyroscope bias and
 // velocities stay well determined. Scale estimation additionally needs min_scale_excitation of
-// acceleration change, or it is refused.
+// (metric, IMU-measured) acceleration change, or it is refused.
 
 #include <string>
 
@@ -58,9 +58,11 @@ struct InertialMapInitOptions {
   /// std is capped at unexcited_accel_bias_prior_sigma.
   double min_rotation_for_accel_bias_deg = 10.0;
   double unexcited_accel_bias_prior_sigma = 1e-3;  ///< [m/s^2], > 0.
-  /// Scale estimation only: the keyframe accelerations (finite differences of the visual
-  /// velocities) must vary by at least this much (RMS about their mean) [visual units / s^2], > 0.
-  double min_scale_excitation = 0.1;
+  /// Scale estimation only: the metric acceleration must vary by at least this much over the
+  /// chain [m/s^2], > 0: RMS about their mean of the keyframe intervals' mean specific forces
+  /// (preintegrated velocity change / time, rotated into the world by the keyframe orientations;
+  /// gravity cancels). Measured by the IMU, so independent of the arbitrary visual scale.
+  double min_scale_excitation = 0.3;
   int max_iterations = 50;       ///< Ceres iterations per round, >= 1.
   int reintegration_rounds = 1;  ///< Extra rounds after re-integrating at the estimate, >= 0.
 

@@ -21,6 +21,7 @@ namespace superdyna::mapping {
 struct PointTriangulatorOptions {
   int neighbours = 10;                     ///< Covisible keyframes paired with the new one, >= 1.
   int max_distance = 50;                   ///< Hamming distance bound of a match [bits], >= 0.
+  double max_l2_distance = 0.9;            ///< ... Euclidean bound (float descriptors), >= 0.
   double ratio = 0.8;                      ///< Best / second-best distance on the line, (0, 1].
   double min_baseline_depth_ratio = 0.01;  ///< Baseline / neighbour median depth needed, >= 0.
   double max_cos_parallax = 0.9998;        ///< Rays more parallel than this are skipped, (-1, 1].

@@ -37,6 +37,7 @@ class MappingWorker final : public tracking::MappingSink {
   void submit(std::function<void()> job) override;
   void discardPending() override;
   void waitIdle() override;
+  bool busy() const override;
   /// Runs every queued job, then joins the thread. A later submit() starts a new thread.
   void finish();
 

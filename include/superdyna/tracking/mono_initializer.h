@@ -32,6 +32,7 @@ struct MonoInitializerOptions {
   int min_matches = 100;             ///< Matches to the reference needed to try, >= 8.
   double search_radius_px = 100.0;   ///< Window around the reference keypoint positions [px], > 0.
   int max_distance = 50;             ///< Hamming distance bound of the matches [bits], >= 0.
+  double max_l2_distance = 0.9;      ///< ... Euclidean bound (float descriptors), >= 0.
   double ratio = 0.9;                ///< Best / second-best distance in the window, (0, 1].
   double ransac_threshold_px = 1.5;  ///< RANSAC inlier distance (E: Sampson, H: transfer) [px].
   double min_parallax_deg = 1.0;     ///< Parallax of the 50th largest good point [deg], > 0.
@@ -44,7 +45,7 @@ struct MonoInitializerOptions {
   /// A reference older than this without initialisation is replaced by the current frame [s].
   double max_reference_age_s = 1.0;
   double sigma0_px = 1.0;     ///< Keypoint standard deviation at octave 0 [px], > 0.
-  double scale_factor = 1.2;  ///< Pyramid scale between octaves, > 1.
+  double scale_factor = 1.2;  ///< Pyramid scale between octaves, >= 1 (1: one level).
 
   /// Throws OptionError naming the first invalid field (prefix "mono_init.").
   void validate() const;

@@ -15,6 +15,14 @@
 // map metric and gravity-aligned; until then the IMU only predicts rotations. Keyframes of a
 // monocular-inertial map are always at least imu_min_keyframe_interval_s apart (ORB-SLAM3 inserts
 // them every 0.25-0.5 s): more frequent ones add little parallax and cost local BA time.
+//
+// Monocular maps with a mapping thread (MappingSink): tracking needs the points the mapper
+// triangulates from the previous keyframe, so the tracker never runs more than one keyframe ahead
+// of the mapper. When a keyframe is wanted while the mapper still works on the previous one, the
+// tracker waits for it and then inserts the keyframe (mono_wait_for_mapping, the default: the
+// keyframes are the ones the sequential pipeline would take). Otherwise (ORB-SLAM's real-time
+// policy) the keyframe is refused unless tracking is weak (fewer than keyframe_weak_inliers
+// inliers) or keyframe_max_interval_s has passed since the last one, and only then waited for.
 
 #include <Eigen/Core>
 #include <functional>
@@ -49,9 +57,23 @@ struct TrackerOptions {
   optim::PoseOptimizerOptions pose;  ///< Motion-only BA.
   int min_inliers = 15;              ///< Fewer pose inliers = tracking lost, >= 3.
   int local_keyframes = 10;          ///< Covisible keyframes whose points form the local map, >= 0.
-  double keyframe_tracked_ratio = 0.75;    ///< New keyframe below this share of the ref's points.
-  double keyframe_max_interval_s = 0.5;    ///< New keyframe at least this often [s], > 0.
-  int keyframe_min_tracked = 150;          ///< New keyframe when fewer inliers than this, >= 0.
+  double keyframe_tracked_ratio = 0.75;  ///< New keyframe below this share of the ref's points.
+  double keyframe_max_interval_s = 0.5;  ///< New keyframe at least this often [s], > 0.
+  int keyframe_min_tracked = 150;        ///< New keyframe when fewer inliers than this, >= 0.
+  /// No new keyframe sooner than this after the previous one [s], >= 0, unless tracking is weak
+  /// (fewer than keyframe_weak_inliers inliers). Monocular maps need it: without a busy mapping
+  /// thread (deterministic pipeline) the tracked-ratio test alone fires at almost every frame.
+  double keyframe_min_interval_s = 0.0;
+  /// Tracking this weak (fewer inliers) overrides keyframe_min_interval_s and, monocular with a
+  /// mapping thread, makes the tracker wait for a busy mapper to insert a keyframe, >= 0.
+  int keyframe_weak_inliers = 75;
+  /// Monocular with a mapping thread: a keyframe wanted while the mapper is busy waits for it
+  /// (true) or is refused unless tracking is weak or the last keyframe is overdue (false).
+  bool mono_wait_for_mapping = true;
+  /// Monocular with a mapping thread, once the IMU is initialised: tracking waits for the local
+  /// BA of each new keyframe. The IMU prediction (and its pose prior) starts from the newest
+  /// keyframe's state; unrefined (tracked pose, predicted velocity), it lost track on V1_02.
+  bool mono_inertial_wait_for_keyframe_ba = true;
   int keyframe_min_stereo = 50;            ///< Stereo keypoints a new keyframe needs, >= 0.
   double close_depth_baselines = 40.0;     ///< New points: depth below this many baselines, > 0.
   int min_new_points = 300;                ///< ... or at least the this many closest stereo points.
@@ -69,11 +91,18 @@ struct TrackerOptions {
   double imu_min_keyframe_interval_s = 0.25;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
+  /// After the inertial initialisation, tracking failures keep the map and report the IMU
+  /// prediction (kRecentlyLost) for up to this long after the last tracked frame [s], >= 0; the
+  /// next frames are tracked against the map from the prediction. Only longer failures start a new
+  /// map (monocular: at a new, arbitrary scale). 0 = a new map at the first failure.
+  double imu_bridge_s = 3.0;
   void validate() const;
 };
 
 /// kInitializing: a monocular map is being initialised; the frame has no pose estimate.
-enum class TrackingState { kTracking, kInitialized, kLost, kInitializing };
+/// kRecentlyLost: tracking failed on a map whose IMU is initialised; the pose is the IMU
+/// prediction and the map is kept (ORB-SLAM3's RECENTLY_LOST), see TrackerOptions::imu_bridge_s.
+enum class TrackingState { kTracking, kInitialized, kLost, kInitializing, kRecentlyLost };
 const char* toString(TrackingState state);
 
 struct StageTimes {
@@ -118,6 +147,8 @@ class MappingSink {
   virtual void discardPending() = 0;
   /// Returns once every job submitted so far has run (the map is quiet until the next submit).
   virtual void waitIdle() = 0;
+  /// A job is queued or running.
+  virtual bool busy() const = 0;
 };
 
 class Tracker {
@@ -200,6 +231,12 @@ class Tracker {
       const Frame& frame, const std::vector<LocalPoint>& points,
       const std::vector<features::Match>& matches) const;
   bool needKeyFrame(const Frame& frame, int inliers) const;
+  /// Whether a tracking failure at `frame` may be bridged by the IMU prediction (kRecentlyLost).
+  bool canBridgeWithImu(const Frame& frame, const Prediction& prediction) const;
+  bool weakTracking(int inliers) const { return inliers < options_.keyframe_weak_inliers; }
+  /// Monocular with a mapping thread: whether a wanted keyframe may be inserted now (waits for a
+  /// busy mapper first; see mono_wait_for_mapping for when it is refused instead).
+  bool mappingAcceptsKeyFrame(const Frame& frame, int inliers);
   int referenceTrackedPoints() const;
   map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
                                  const std::vector<map::MapPointId>& tracked,
@@ -238,6 +275,7 @@ class Tracker {
   TimeNs t_last_ns_ = 0;
   map::KeyFrameId reference_ = map::kNoKeyFrame;
   TimeNs t_reference_ns_ = 0;
+  TimeNs t_tracked_ns_ = 0;  ///< The last frame tracked against the map.
   int resets_ = 0;
 
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
