@@ -2,8 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-#include <optional>
 #include <string>
 
 #include "superdyna/inference/model_files.h"
@@ -47,31 +45,9 @@ TEST(ExtractorFactory, BuildsOrbAndRejectsBadOptions) {
   test::expectError<OptionError>([&] { makeExtractor(options); }, {"features.inference_threads"});
 }
 
-/// Sets an environment variable for the scope and restores its previous state.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    ::setenv(name, value.c_str(), 1);
-  }
-  ~ScopedEnv() {
-    if (old_) {
-      ::setenv(name_, old_->c_str(), 1);
-    } else {
-      ::unsetenv(name_);
-    }
-  }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
-
 TEST(ExtractorFactory, MissingModelSaysWhereItLookedAndHowToGetOne) {
   const test::ScratchDir empty("factory_no_models");
-  const ScopedEnv env(inference::kModelDirVariable, empty.path().string());
+  const test::ScopedEnv env(inference::kModelDirVariable, empty.path().string());
   FeatureOptions options;
   options.type = FeatureType::kSuperPoint;
   test::expectError([&] { makeExtractor(options); },
@@ -81,7 +57,7 @@ TEST(ExtractorFactory, MissingModelSaysWhereItLookedAndHowToGetOne) {
 
 TEST(ExtractorFactory, BuildsXFeatFromTheSharedModel) {
   SUPERDYNA_REQUIRE_SHARED(models, "models/xfeat.onnx");
-  const ScopedEnv env(inference::kModelDirVariable, models.parent_path().string());
+  const test::ScopedEnv env(inference::kModelDirVariable, models.parent_path().string());
   FeatureOptions options;
   options.type = FeatureType::kXFeat;
   options.max_keypoints = 300;

@@ -333,7 +333,7 @@ TEST(SuperPointExtractorTest, ComposedModelOnEurocStereoAndTiming) {
   makeModel("from-xfeat --xfeat " + xfeat.string() + " --out " +
             (dir / "superpoint_xfeat.onnx").string());
   // Found by name through SUPERDYNA_MODEL_DIR, as users would.
-  ::setenv(inference::kModelDirVariable, dir.path().c_str(), 1);
+  const test::ScopedEnv env(inference::kModelDirVariable, dir.path().string());
   SuperPointOptions options;
   options.model = "superpoint_xfeat.onnx";
   options.warmup_size = {752, 480};

@@ -68,7 +68,7 @@ TEST(XFeatOptionsTest, ValidateNamesTheField) {
 
 TEST(XFeatExtractorTest, MissingModelSaysWhereItLooked) {
   test::ScratchDir empty("xfeat_models");
-  ::setenv(inference::kModelDirVariable, empty.path().c_str(), 1);
+  const test::ScopedEnv env(inference::kModelDirVariable, empty.path().string());
   XFeatOptions options;
   options.model = "xfeat_absent_everywhere.onnx";  // models/ of the checkout may hold xfeat.onnx
   expectError([&] { XFeatExtractor{options}; }, {"model 'xfeat_absent_everywhere.onnx' not found",

@@ -2,7 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -31,28 +30,6 @@ ModelSignature xfeatSignature() {
   }
   return s;
 }
-
-/// Sets an environment variable for the lifetime of the object, then restores it.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old;
-    ::setenv(name, value.c_str(), 1);
-  }
-  ~ScopedEnv() {
-    if (old_) {
-      ::setenv(name_, old_->c_str(), 1);
-    } else {
-      ::unsetenv(name_);
-    }
-  }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-
- private:
-  const char* name_;
-  std::optional<std::string> old_;
-};
 
 TEST(TensorSpec, DimensionsAcceptFixedDynamicAndMultiples) {
   EXPECT_TRUE(DimSpec::fixed(3).accepts(3));
@@ -92,7 +69,7 @@ TEST(TensorSpec, MismatchNamesTheDimensionRankAndType) {
 
 TEST(ModelFiles, MissingModelListsWhereItLookedAndHowToGetOne) {
   test::ScratchDir dir("model_files");
-  ScopedEnv env(kModelDirVariable, dir.path().string());
+  test::ScopedEnv env(kModelDirVariable, dir.path().string());
   expectError([] { findModel("no_such_model.onnx"); },
               {"no_such_model.onnx", dir.path().string(), "models", "SUPERDYNA_MODEL_DIR",
                "Learned front end"});
@@ -103,7 +80,7 @@ TEST(ModelFiles, MissingModelListsWhereItLookedAndHowToGetOne) {
 TEST(ModelFiles, FindsAModelInTheEnvironmentFolderAndTakesPathsAsGiven) {
   test::ScratchDir dir("model_files");
   test::writeFile(dir / "tiny.onnx", "x");
-  ScopedEnv env(kModelDirVariable, dir.path().string());
+  test::ScopedEnv env(kModelDirVariable, dir.path().string());
   EXPECT_EQ(findModel("tiny.onnx"), dir / "tiny.onnx");
   EXPECT_EQ(findModel((dir / "tiny.onnx").string()), dir / "tiny.onnx");
   expectError([&] { findModel((dir / "other.onnx").string()); },

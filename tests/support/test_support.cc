@@ -23,6 +23,19 @@ fs::path sharedPath(const std::string& relative) {
   return fs::exists(p) ? fs::weakly_canonical(p) : fs::path{};
 }
 
+ScopedEnv::ScopedEnv(const char* name, const std::string& value) : name_(name) {
+  if (const char* old = std::getenv(name)) old_ = old;
+  ::setenv(name, value.c_str(), 1);
+}
+
+ScopedEnv::~ScopedEnv() {
+  if (old_) {
+    ::setenv(name_, old_->c_str(), 1);
+  } else {
+    ::unsetenv(name_);
+  }
+}
+
 ScratchDir::ScratchDir(const std::string& name) {
   static std::atomic<int> counter{0};
   path_ = fs::temp_directory_path() / ("superdyna_test_" + name + "_" + std::to_string(::getpid()) +

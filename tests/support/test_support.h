@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <initializer_list>
+#include <optional>
 #include <string>
 
 #include "superdyna/core/error.h"
@@ -30,6 +31,20 @@ class ScratchDir {
 
  private:
   std::filesystem::path path_;
+};
+
+/// Sets an environment variable for the lifetime of the object, then restores its previous value
+/// (or unsets it).
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value);
+  ~ScopedEnv();
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::optional<std::string> old_;
 };
 
 /// Runs `fn` and expects an exception of type Error whose message contains every fragment.
