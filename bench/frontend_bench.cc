@@ -73,39 +73,46 @@ void BM_OrbStereoPair(benchmark::State& state) {
 }
 BENCHMARK(BM_OrbStereoPair)->Unit(benchmark::kMillisecond);
 
-void BM_XFeatExtract(benchmark::State& state) {
-  const auto& sample = stereoSample();
-  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
-  const fs::path model =
-      fromEnvironmentOr("SUPERDYNA_MODEL_DIR", fs::path(SUPERDYNA_SHARED_DIR) / "models") /
-      "xfeat.onnx";
-  if (!fs::exists(model)) return state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
-  features::XFeatOptions options;
-  options.model = model.string();
-  features::XFeatExtractor extractor(options);
-  for (auto _ : state)
-    benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
-}
-BENCHMARK(BM_XFeatExtract)->Unit(benchmark::kMillisecond);
-
 fs::path xfeatModel() {
   return fromEnvironmentOr("SUPERDYNA_MODEL_DIR", fs::path(SUPERDYNA_SHARED_DIR) / "models") /
          "xfeat.onnx";
 }
 
-/// One image with ONNX Runtime configured by the arguments (intra-op threads, spinning 0/1):
-/// process CPU time (all threads), and the mean network and decoding [ms] per call as counters.
-void BM_XFeatExtractRuntime(benchmark::State& state) {
-  const auto& sample = stereoSample();
-  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+/// XFeat options with the model set, or nullopt after marking the benchmark skipped because the
+/// EuRoC excerpt or xfeat.onnx is missing.
+std::optional<features::XFeatOptions> xfeatOptionsOrSkip(benchmark::State& state) {
+  if (!stereoSample()) {
+    state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+    return std::nullopt;
+  }
   if (!fs::exists(xfeatModel())) {
-    return state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
+    state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
+    return std::nullopt;
   }
   features::XFeatOptions options;
   options.model = xfeatModel().string();
-  options.runtime.intra_op_threads = static_cast<int>(state.range(0));
-  options.runtime.allow_spinning = state.range(1) != 0;
-  features::XFeatExtractor extractor(options);
+  return options;
+}
+
+void BM_XFeatExtract(benchmark::State& state) {
+  const auto options = xfeatOptionsOrSkip(state);
+  if (!options) return;
+  const auto& sample = stereoSample();
+  features::XFeatExtractor extractor(*options);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
+}
+BENCHMARK(BM_XFeatExtract)->Unit(benchmark::kMillisecond);
+
+/// One image with ONNX Runtime configured by the arguments (intra-op threads, spinning 0/1):
+/// process CPU time (all threads), and the mean network and decoding [ms] per call as counters.
+void BM_XFeatExtractRuntime(benchmark::State& state) {
+  auto options = xfeatOptionsOrSkip(state);
+  if (!options) return;
+  const auto& sample = stereoSample();
+  options->runtime.intra_op_threads = static_cast<int>(state.range(0));
+  options->runtime.allow_spinning = state.range(1) != 0;
+  features::XFeatExtractor extractor(*options);
   double network_ms = 0.0, total_ms = 0.0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
@@ -123,14 +130,10 @@ BENCHMARK(BM_XFeatExtractRuntime)
     ->Unit(benchmark::kMillisecond);
 
 void BM_XFeatStereoPair(benchmark::State& state) {
+  auto options = xfeatOptionsOrSkip(state);
+  if (!options) return;
   const auto& sample = stereoSample();
-  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
-  if (!fs::exists(xfeatModel())) {
-    return state.SkipWithError("xfeat.onnx not found (SUPERDYNA_MODEL_DIR)");
-  }
-  features::XFeatOptions options;
-  options.model = xfeatModel().string();
-  features::XFeatExtractor left(options), right(options);
+  features::XFeatExtractor left(*options), right(*options);
   const features::StereoMatcher matcher(sample->cam0, sample->cam1);
   std::size_t matches = 0;
   for (auto _ : state) {
