@@ -13,6 +13,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/sim/sequence_generator.h"
+#include "support/generated_sequence.h"
 #include "support/test_support.h"
 
 namespace superdyna::system {
@@ -94,62 +95,35 @@ eval::EvaluationResult ateOf(const RunSummary& run,
 
 /// An 8 s street flight with image and IMU noise, generated once for all tests here.
 const fs::path& syntheticSequence() {
-  static test::ScratchDir dir("system_test_street");
-  static const bool generated = [] {
-    sim::SimulationOptions options;
-    options.output_dir = dir.path() / "seq";
-    options.overwrite = true;
-    options.motion.duration_s = 8.0;
-    options.world.scene = sim::SceneType::kStreet;
-    options.world.dynamic = sim::DynamicLevel::kNone;
-    options.seed = 7;
-    sim::generateSequence(options);
-    return true;
-  }();
-  static const fs::path path = dir.path() / "seq";
-  (void)generated;
-  return path;
+  sim::SimulationOptions options;
+  options.motion.duration_s = 8.0;
+  options.world.scene = sim::SceneType::kStreet;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.seed = 7;
+  return test::generatedSequence("system_test_street", options);
 }
 
 /// A 3 s street flight among moving vehicles and pedestrians, with instance masks.
 const fs::path& dynamicSequence() {
-  static test::ScratchDir dir("system_test_dynamic");
-  static const bool generated = [] {
-    sim::SimulationOptions options;
-    options.output_dir = dir.path() / "seq";
-    options.overwrite = true;
-    options.motion.duration_s = 3.0;
-    options.world.scene = sim::SceneType::kStreet;
-    options.world.dynamic = sim::DynamicLevel::kMid;
-    options.landmark_count = 0;
-    options.seed = 2;
-    sim::generateSequence(options);
-    return true;
-  }();
-  static const fs::path path = dir.path() / "seq";
-  (void)generated;
-  return path;
+  sim::SimulationOptions options;
+  options.motion.duration_s = 3.0;
+  options.world.scene = sim::SceneType::kStreet;
+  options.world.dynamic = sim::DynamicLevel::kMid;
+  options.landmark_count = 0;
+  options.seed = 2;
+  return test::generatedSequence("system_test_dynamic", options);
 }
 
 /// A 2 s indoor flight (static scene): the learned-feature runs are slow, so they get a short
 /// sequence of their own.
 const fs::path& indoorSequence() {
-  static test::ScratchDir dir("system_test_indoor");
-  static const bool generated = [] {
-    sim::SimulationOptions options;
-    options.output_dir = dir.path() / "seq";
-    options.overwrite = true;
-    options.motion.duration_s = 2.0;
-    options.world.scene = sim::SceneType::kIndoor;
-    options.world.dynamic = sim::DynamicLevel::kNone;
-    options.landmark_count = 0;
-    options.seed = 3;
-    sim::generateSequence(options);
-    return true;
-  }();
-  static const fs::path path = dir.path() / "seq";
-  (void)generated;
-  return path;
+  sim::SimulationOptions options;
+  options.motion.duration_s = 2.0;
+  options.world.scene = sim::SceneType::kIndoor;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.landmark_count = 0;
+  options.seed = 3;
+  return test::generatedSequence("system_test_indoor", options);
 }
 
 /// The shipped options file `name` under configs/.
@@ -333,19 +307,12 @@ TEST(StereoInertialSlam, BridgesAShortTrackingFailureWithTheImu) {
 
 /// A 3 s street flight (60 frames), cheaper to generate for the tests that need few frames.
 const fs::path& shortSequence() {
-  static test::ScratchDir dir("system_test_short");
-  static const fs::path path = [] {
-    sim::SimulationOptions options;
-    options.output_dir = dir.path() / "seq";
-    options.overwrite = true;
-    options.motion.duration_s = 3.0;
-    options.world.scene = sim::SceneType::kStreet;
-    options.world.dynamic = sim::DynamicLevel::kNone;
-    options.seed = 7;
-    sim::generateSequence(options);
-    return options.output_dir;
-  }();
-  return path;
+  sim::SimulationOptions options;
+  options.motion.duration_s = 3.0;
+  options.world.scene = sim::SceneType::kStreet;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.seed = 7;
+  return test::generatedSequence("system_test_short", options);
 }
 
 std::unique_ptr<io::DatasetSource> openSynthetic(std::size_t max_frames = 0,

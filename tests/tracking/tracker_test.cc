@@ -13,6 +13,7 @@
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/sim/sequence_generator.h"
 #include "superdyna/tracking/front_end.h"
+#include "support/generated_sequence.h"
 #include "support/test_support.h"
 
 namespace superdyna::tracking {
@@ -74,21 +75,12 @@ class ManualMappingSink final : public MappingSink {
 
 /// A 3 s street flight, generated once for the monocular tests here.
 const std::filesystem::path& monoSequence() {
-  static test::ScratchDir dir("tracker_test_street");
-  static const bool generated = [] {
-    sim::SimulationOptions options;
-    options.output_dir = dir.path() / "seq";
-    options.overwrite = true;
-    options.motion.duration_s = 3.0;
-    options.world.scene = sim::SceneType::kStreet;
-    options.world.dynamic = sim::DynamicLevel::kNone;
-    options.seed = 7;
-    sim::generateSequence(options);
-    return true;
-  }();
-  static const std::filesystem::path path = dir.path() / "seq";
-  (void)generated;
-  return path;
+  sim::SimulationOptions options;
+  options.motion.duration_s = 3.0;
+  options.world.scene = sim::SceneType::kStreet;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.seed = 7;
+  return test::generatedSequence("tracker_test_street", options);
 }
 
 struct MonoKeyFrame {

@@ -1,0 +1,37 @@
+#include "support/generated_sequence.h"
+
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include "support/test_support.h"
+
+namespace superdyna::test {
+
+namespace {
+
+struct Generated {
+  std::unique_ptr<ScratchDir> dir;
+  std::filesystem::path sequence;
+};
+
+}  // namespace
+
+const std::filesystem::path& generatedSequence(const std::string& name,
+                                               sim::SimulationOptions options) {
+  static std::mutex mutex;
+  static std::map<std::string, Generated> generated;  // node-based: references stay valid
+  const std::lock_guard lock(mutex);
+  auto found = generated.find(name);
+  if (found == generated.end()) {
+    Generated entry{std::make_unique<ScratchDir>(name), {}};
+    options.output_dir = entry.dir->path() / "seq";
+    options.overwrite = true;
+    sim::generateSequence(options);
+    entry.sequence = options.output_dir;
+    found = generated.emplace(name, std::move(entry)).first;
+  }
+  return found->second.sequence;
+}
+
+}  // namespace superdyna::test

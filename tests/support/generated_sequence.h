@@ -1,0 +1,18 @@
+#pragma once
+// Synthetic sequences shared by the tests of one test process: generated on first use into a
+// scratch folder, reused by every later test, removed when the process ends.
+
+#include <filesystem>
+#include <string>
+
+#include "superdyna/sim/sequence_generator.h"
+
+namespace superdyna::test {
+
+/// Generates the sequence `options` describes (output_dir and overwrite are set here) into a
+/// scratch folder named `name` the first time `name` is asked for, and returns the sequence
+/// folder; later calls with the same name return it without generating again.
+const std::filesystem::path& generatedSequence(const std::string& name,
+                                               sim::SimulationOptions options);
+
+}  // namespace superdyna::test
