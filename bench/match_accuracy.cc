@@ -102,7 +102,12 @@ int main(int argc, char** argv) {
   std::map<std::size_t, tracking::Frame> frames;  // the ones still needed, by index
   std::vector<std::vector<double>> match_errors(variants.size());
   std::vector<double> nearest_errors;
+  std::vector<double> nearest_by_motion[3];  // image motion < 5, 5-15, >= 15 px
   std::size_t predicted_count = 0;
+  // Least-squares slope of the match error onto the image motion (matches within 5 px): 0 when
+  // keypoints follow the scene, > 0 when they lag behind it (stick to image positions).
+  double lag_numerator = 0.0;
+  double lag_denominator = 0.0;
   std::size_t index = 0;
   while (auto bundle = source->next()) {
     const bool is_source = index % static_cast<std::size_t>(step) == 0;
@@ -134,15 +139,27 @@ int main(int argc, char** argv) {
           for (const features::Match& m : features::matchByProjection(query, predicted, b.features,
                                                                       grid, variants[v].second)) {
             const auto& pixel = b.features.keypoints[static_cast<std::size_t>(m.train)].pixel;
-            match_errors[v].push_back(
-                (pixel - predicted[static_cast<std::size_t>(m.query)]).norm());
+            const Eigen::Vector2d& target = predicted[static_cast<std::size_t>(m.query)];
+            match_errors[v].push_back((pixel - target).norm());
+            if (v == 0) {
+              const Eigen::Vector2d error = pixel - target;
+              const Eigen::Vector2d motion =
+                  target - query.keypoints[static_cast<std::size_t>(m.query)].pixel;
+              if ((pixel - target).norm() < 5.0) {
+                lag_numerator -= error.dot(motion);
+                lag_denominator += motion.squaredNorm();
+              }
+            }
           }
         }
-        for (const Eigen::Vector2d& p : predicted) {
+        for (std::size_t q = 0; q < predicted.size(); ++q) {
+          const Eigen::Vector2d& p = predicted[q];
           double best = 1e9;
           for (const auto& k : b.features.keypoints)
             best = std::min(best, (k.pixel - p).norm());
           nearest_errors.push_back(best);
+          const double motion = (p - query.keypoints[q].pixel).norm();
+          nearest_by_motion[motion < 5.0 ? 0 : (motion < 15.0 ? 1 : 2)].push_back(best);
         }
         predicted_count += predicted.size();
       }
@@ -155,5 +172,10 @@ int main(int argc, char** argv) {
   for (std::size_t v = 0; v < variants.size(); ++v)
     report(variants[v].first, match_errors[v]);
   report("nearest", nearest_errors);
+  report("nearest, motion<5px", nearest_by_motion[0]);
+  report("nearest, 5-15px", nearest_by_motion[1]);
+  report("nearest, >=15px", nearest_by_motion[2]);
+  std::printf("keypoint lag behind the image motion (matches < 5 px): %.3f\n",
+              lag_denominator > 0.0 ? lag_numerator / lag_denominator : 0.0);
   return 0;
 }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <string>
 
@@ -104,6 +105,25 @@ void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::Align
   }
 }
 
+/// `--frame-log`: one CSV row per frame with the tracker's view of it, for finding where and why
+/// tracking failed.
+class FrameLog {
+ public:
+  explicit FrameLog(const fs::path& path) : out_(path) {
+    if (!out_) {
+      throw OptionError("--frame-log", "cannot open '" + path.string() + "' for writing");
+    }
+    out_ << "frame,state,matches,inliers,from_reference,keyframe\n";
+  }
+  void write(std::size_t frame, const tracking::TrackingResult& r) {
+    out_ << frame << ',' << tracking::toString(r.state) << ',' << r.matches << ',' << r.inliers
+         << ',' << (r.from_reference ? 1 : 0) << ',' << (r.keyframe ? 1 : 0) << '\n';
+  }
+
+ private:
+  std::ofstream out_;
+};
+
 class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
@@ -129,6 +149,9 @@ class RunCommand : public Command {
     sub_->add_option("--model", model_,
                      "ONNX model of a learned extractor (overrides features.model; a bare name is "
                      "looked up in $SUPERDYNA_MODEL_DIR, then models/)");
+    sub_->add_option("--frame-log", frame_log_,
+                     "Also write a CSV row per frame: index, tracking state, map matches, pose "
+                     "inliers, tracked from the reference keyframe (1/0), keyframe (1/0)");
     sub_->add_flag("--instance-masks", instance_masks_,
                    "Label keypoints with the sequence's instance masks (simulated sequences: "
                    "mav0/camN/mask/ and instances.csv)");
@@ -165,6 +188,7 @@ class RunCommand : public Command {
     refuseOutputInsideDataset(output_, "--output");
     const fs::path keyframes_path = keyFramesPath();
     refuseOutputInsideDataset(keyframes_path, "--keyframes");
+    if (frame_log_) refuseOutputInsideDataset(*frame_log_, "--frame-log");
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
@@ -192,7 +216,10 @@ class RunCommand : public Command {
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
                source->size());
     ProgressLine progress;
+    std::optional<FrameLog> frame_log;
+    if (frame_log_) frame_log.emplace(*frame_log_);
     slam.run(*source, [&](const tracking::TrackingResult& result) {
+      if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       progress.update(slam.timings().frames, source->size(), result, slam);
     });
     const system::TimingSummary& t = slam.timings();
@@ -204,6 +231,8 @@ class RunCommand : public Command {
         "({} keyframes)\n",
         t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
         keyframes_path.string(), keyframes.size());
+    fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
+               slam.referenceTrackedFrames());
     if (system::isMonocular(options.mode)) {
       fmt::print("monocular: {} frames spent initialising maps (not in the trajectory)\n",
                  slam.initializingFrames());
@@ -225,6 +254,7 @@ class RunCommand : public Command {
   std::string mode_ = "stereo";
   fs::path output_;
   std::optional<fs::path> keyframes_;
+  std::optional<fs::path> frame_log_;
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;
   std::optional<fs::path> config_;

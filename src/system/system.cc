@@ -65,6 +65,8 @@ SystemOptions checkedOptions(SystemOptions options) {
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
   options.tracker.projection.same_class_only = options.front_end.features.class_wise_matching;
+  options.tracker.reference_matching.matching.same_class_only =
+      options.front_end.features.class_wise_matching;
   options.validate();
   return options;
 }
@@ -145,6 +147,7 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
       result.state == tracking::TrackingState::kRecentlyLost) {
     ++lost_frames_;  // bridged by the IMU or not, the frame was not tracked
   }
+  if (result.from_reference) ++reference_frames_;
   return result;
 }
 

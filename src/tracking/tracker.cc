@@ -55,6 +55,7 @@ void TrackerOptions::validate() const {
   mono_init.validate();
   imu_prior.validate();
   if (!(imu_bridge_s >= 0.0)) throw OptionError("tracker.imu_bridge_s", "must be >= 0");
+  reference_matching.validate();
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
     throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
   }
@@ -204,7 +205,7 @@ TrackingResult Tracker::track(const Frame& frame) {
     updateMotion(result.T_w_b, frame.t_ns);
     return result;
   }
-  const std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result);
+  const std::vector<map::MapPointId> tracked = trackFrame(frame, prediction, result);
   result.times.track_ms = millisecondsSince(start);
   if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
     result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
@@ -231,13 +232,79 @@ void Tracker::initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult
   result.keyframe = true;
 }
 
+std::vector<map::MapPointId> Tracker::trackFrame(const Frame& frame, const Prediction& prediction,
+                                                 TrackingResult& result) {
+  // Visibility is counted by the first search of the frame only.
+  const bool motion_unknown = !prediction.inertial && !has_motion_;
+  if (motion_unknown) {
+    if (auto tracked = trackFromReference(frame, result, true)) return std::move(*tracked);
+  }
+  std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result, !motion_unknown);
+  if (result.inliers >= options_.min_inliers || motion_unknown) return tracked;
+  if (auto retried = trackFromReference(frame, result, false)) return std::move(*retried);
+  return tracked;
+}
+
+std::optional<std::vector<map::MapPointId>> Tracker::trackFromReference(const Frame& frame,
+                                                                        TrackingResult& result,
+                                                                        bool count_visible) {
+  if (!options_.reference_matching.enabled) return std::nullopt;
+  const std::optional<ReferencePose> pose =
+      poseFromReference(frame, referenceView(), T_b_c0_, 0.5 * (camera0_.fx() + camera0_.fy()),
+                        options_.min_inliers, options_.reference_matching);
+  if (!pose) return std::nullopt;
+  TrackingResult attempt = result;
+  const Prediction from_reference{pose->T_w_b, false, std::nullopt};
+  std::vector<map::MapPointId> tracked =
+      trackLocalMap(frame, from_reference, attempt, count_visible);
+  if (attempt.inliers < options_.min_inliers) return std::nullopt;
+  attempt.from_reference = true;
+  result = attempt;
+  return tracked;
+}
+
+ReferenceView Tracker::referenceView() const {
+  // Copy the keyframe's observations first: map reads must not nest.
+  std::vector<std::pair<map::MapPointId, features::Keypoint>> observed;
+  std::vector<cv::Mat> rows;
+  features::DescriptorType type = features::DescriptorType::kBinary;
+  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
+    if (kf.descriptors.empty()) return;
+    if (kf.descriptors.type() == CV_32FC1) type = features::DescriptorType::kFloat;
+    for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
+      if (kf.map_points[i] == map::kNoMapPoint) continue;
+      const map::KeyFrameKeypoint& k = kf.keypoints[i];
+      features::Keypoint keypoint;
+      keypoint.pixel = k.pixel;
+      keypoint.angle = k.angle;
+      keypoint.octave = k.octave;
+      keypoint.class_id = k.class_id;
+      keypoint.instance_id = k.instance_id;
+      observed.emplace_back(kf.map_points[i], keypoint);
+      rows.push_back(kf.descriptors.row(static_cast<int>(i)).clone());
+    }
+  });
+  ReferenceView view;
+  view.features.descriptor_type = type;
+  std::vector<cv::Mat> kept;
+  for (std::size_t k = 0; k < observed.size(); ++k) {
+    const std::optional<Eigen::Vector3d> p_w = map_->mapPointPosition(observed[k].first);
+    if (!p_w) continue;
+    view.features.keypoints.push_back(observed[k].second);
+    kept.push_back(rows[k]);
+    view.p_w.push_back(*p_w);
+  }
+  if (!kept.empty()) cv::vconcat(kept, view.features.descriptors);
+  return view;
+}
+
 std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
                                                     const Prediction& prediction,
-                                                    TrackingResult& result) {
+                                                    TrackingResult& result, bool count_visible) {
   std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
   const std::vector<LocalPoint> points = localPoints();
   std::vector<features::Match> matches =
-      matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true, true);
+      matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true, count_visible);
   result.matches = static_cast<int>(matches.size());
   for (const features::Match& m : matches) {
     int point_class = features::kClassBackground;

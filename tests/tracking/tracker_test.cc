@@ -298,6 +298,7 @@ TEST(Tracker, SecondSearchFromTheFirstPoseRecoversAmbiguousMatches) {
   const auto inliersOfSecond = [&](double refine_radius_px) {
     TrackerOptions options;
     options.refine_radius_px = refine_radius_px;
+    options.reference_matching.enabled = false;  // this test is about the projection search
     Tracker tracker = makeTracker(options);
     EXPECT_EQ(tracker.track(first).state, TrackingState::kInitialized);
     const TrackingResult result = tracker.track(second);
@@ -312,6 +313,107 @@ TEST(Tracker, SecondSearchFromTheFirstPoseRecoversAmbiguousMatches) {
   TrackerOptions bad;
   bad.refine_radius_px = -1.0;
   test::expectError<OptionError>([&] { bad.validate(); }, {"tracker.refine_radius_px"});
+}
+
+/// `count` points 3-5 m ahead of the body at the world origin, with random unit descriptors.
+std::pair<std::vector<Eigen::Vector3d>, cv::Mat> randomScene(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> x(-2.0, 2.0), y(-1.2, 1.2), z(3.0, 5.0);
+  std::normal_distribution<float> normal;
+  const sim::RigOptions rig;
+  std::vector<Eigen::Vector3d> p_w;
+  cv::Mat descriptors(count, 64, CV_32FC1);
+  for (int k = 0; k < count; ++k) {
+    p_w.push_back(rig.T_b_c0() * Eigen::Vector3d(x(rng), y(rng), z(rng)));
+    for (int c = 0; c < 64; ++c)
+      descriptors.at<float>(k, c) = normal(rng);
+    cv::normalize(descriptors.row(k), descriptors.row(k));
+  }
+  return {p_w, descriptors};
+}
+
+TEST(Tracker, FirstFrameOfAMapIsTrackedFromTheReferenceKeyFrame) {
+  // The second frame of a map moved 0.25 m sideways (30-70 px of image motion); with no motion
+  // model yet it is predicted where the first frame was. Each point has a look-alike keypoint
+  // (descriptor + small noise, as neighbouring XFeat keypoints are) exactly where that prediction
+  // projects it. The projection search takes the look-alikes and confirms the wrong pose; matching
+  // the reference keyframe without a prediction and PnP find the true one.
+  const auto [p_w, descriptors] = randomScene(200, 11);
+  const sim::RigOptions rig;
+  const SE3d T_w_b2(Eigen::Quaterniond::Identity(),
+                    rig.T_b_c0().rotation() * Eigen::Vector3d(0.25, 0.0, 0.0));
+  const Frame first = syntheticFrame(0, SE3d(), p_w, descriptors, true);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> normal(0.0f, 0.03f);
+  cv::Mat look_alikes = descriptors.clone();
+  for (int k = 0; k < look_alikes.rows; ++k) {
+    for (int c = 0; c < look_alikes.cols; ++c)
+      look_alikes.at<float>(k, c) += normal(rng);
+    cv::normalize(look_alikes.row(k), look_alikes.row(k));
+  }
+  cv::Mat both;
+  cv::vconcat(descriptors, look_alikes, both);
+  std::vector<std::pair<int, Eigen::Vector2d>> decoys;
+  for (int k = 0; k < 200; ++k)
+    decoys.emplace_back(200 + k, first.features.keypoints[static_cast<std::size_t>(k)].pixel);
+  const Frame second = syntheticFrame(secondsToNs(0.05), T_w_b2, p_w, both, false, decoys);
+
+  const auto trackSecond = [&](bool reference_matching) {
+    TrackerOptions options;
+    options.reference_matching.enabled = reference_matching;
+    Tracker tracker = makeTracker(options);
+    EXPECT_EQ(tracker.track(first).state, TrackingState::kInitialized);
+    return tracker.track(second);
+  };
+  const TrackingResult without = trackSecond(false);
+  EXPECT_FALSE(without.from_reference);
+  EXPECT_GT((without.T_w_b.t - T_w_b2.t).norm(), 0.2);  // stuck at the prediction
+  const TrackingResult with = trackSecond(true);
+  EXPECT_EQ(with.state, TrackingState::kTracking);
+  EXPECT_TRUE(with.from_reference);
+  EXPECT_LT((with.T_w_b.t - T_w_b2.t).norm(), 1e-3);
+  EXPECT_GE(with.inliers, 195);
+}
+
+TEST(ReferenceMatching, PoseFromDescriptorsAloneDespiteOutliers) {
+  // 150 points seen from a pose 0.6 m and 20 degrees away from the origin; 100 more keypoints with
+  // random descriptors that match nothing, and 20 true matches moved 30 px (wrong positions).
+  const auto [p_w, descriptors] = randomScene(150, 5);
+  const sim::RigOptions rig;
+  const SE3d T_w_b(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.35, Eigen::Vector3d(0.2, 1.0, 0.1).normalized())),
+      Eigen::Vector3d(0.3, -0.4, 0.35));
+  std::vector<std::pair<int, Eigen::Vector2d>> clutter;
+  const auto [unused, noise] = randomScene(100, 6);
+  cv::Mat rows;
+  cv::vconcat(descriptors, noise, rows);
+  for (int k = 0; k < 100; ++k)
+    clutter.emplace_back(150 + k, Eigen::Vector2d(5.0 + 7.0 * k, 40.0 + 3.0 * k));
+  Frame frame = syntheticFrame(0, T_w_b, p_w, rows, false, clutter);
+  for (std::size_t k = 0; k < 20; ++k) {
+    frame.features.keypoints[k].pixel.x() += 30.0;
+    frame.normalized[k].x() += 30.0 / rig.fx;
+  }
+  ReferenceView view;
+  view.features.descriptor_type = features::DescriptorType::kFloat;
+  view.features.descriptors = descriptors;
+  view.features.keypoints.resize(150);
+  view.p_w = p_w;
+
+  ReferenceMatchingOptions options;
+  const std::optional<ReferencePose> pose =
+      poseFromReference(frame, view, rig.T_b_c0(), rig.fx, 15, options);
+  ASSERT_TRUE(pose.has_value());
+  EXPECT_EQ(pose->matches, 150);  // the clutter matches nothing
+  EXPECT_EQ(pose->inliers, 130);  // the moved 20 are RANSAC outliers
+  EXPECT_LT((pose->T_w_b.t - T_w_b.t).norm(), 1e-6);
+  EXPECT_LT((pose->T_w_b.inverse() * T_w_b).q.angularDistance(Eigen::Quaterniond::Identity()),
+            1e-6);
+  // Too few points for the required support: no pose rather than a guess.
+  EXPECT_FALSE(poseFromReference(frame, view, rig.T_b_c0(), rig.fx, 200, options).has_value());
+  options.ransac_threshold_px = 0.0;
+  test::expectError<OptionError>([&] { options.validate(); },
+                                 {"tracker.reference_matching.ransac_threshold_px"});
 }
 
 }  // namespace

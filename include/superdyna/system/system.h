@@ -125,6 +125,8 @@ class System {
   Trajectory keyFrameTrajectory() const;
   const TimingSummary& timings() const { return timings_; }
   std::size_t lostFrames() const { return lost_frames_; }
+  /// Frames tracked from the reference keyframe's PnP pose (tracking/reference_matching.h).
+  std::size_t referenceTrackedFrames() const { return reference_frames_; }
   /// Monocular: frames spent initialising a map (no pose estimate; not in the trajectory).
   std::size_t initializingFrames() const { return initializing_frames_; }
   int resets() const { return tracker_.resets(); }
@@ -157,6 +159,7 @@ class System {
   TimingSummary timings_;
   double mapping_wall_ms_ = 0.0;  ///< Mapping thread's job time already in timings_.
   std::size_t lost_frames_ = 0;
+  std::size_t reference_frames_ = 0;
   std::size_t initializing_frames_ = 0;
   std::size_t map_start_ = 0;  ///< First trajectory entry estimated on the current map.
 };

@@ -42,6 +42,7 @@
 #include "superdyna/tracking/frame.h"
 #include "superdyna/tracking/inertial_prediction.h"
 #include "superdyna/tracking/mono_initializer.h"
+#include "superdyna/tracking/reference_matching.h"
 
 namespace superdyna::tracking {
 
@@ -99,6 +100,9 @@ struct TrackerOptions {
   /// projection search radius: 3 s turned one reset on a dim, blurred XFeat run into 61 lost frames
   /// and twice the ATE, so the default covers short dropouts (a few blurred frames) only.
   double imu_bridge_s = 0.5;
+  /// Pose from the reference keyframe without a prediction (reference_matching.h): for frames whose
+  /// motion is unknown and as a retry before a frame is declared lost.
+  ReferenceMatchingOptions reference_matching;
   void validate() const;
 };
 
@@ -121,6 +125,9 @@ struct TrackingResult {
   int matches = 0;
   int cross_class_matches = 0;  ///< Map-to-frame matches between different class_id.
   int inliers = 0;
+  /// Tracked from the reference keyframe's PnP pose instead of the prediction
+  /// (reference_matching.h).
+  bool from_reference = false;
   bool keyframe = false;
   /// Set when the world frame of the current map changed at this frame (inertial initialisation:
   /// gravity alignment; mono-inertial: scale too): poses reported earlier on this map map into the
@@ -211,8 +218,18 @@ class Tracker {
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
   std::unique_ptr<map::Map> newMap() const;
   void startMap(const Frame& frame, const SE3d& T_w_b);
+  /// Tracks the local map from the prediction, or from the reference keyframe's PnP pose when the
+  /// motion is unknown or the prediction fails (reference_matching.h).
+  std::vector<map::MapPointId> trackFrame(const Frame& frame, const Prediction& prediction,
+                                          TrackingResult& result);
+  /// The local-map search from the reference keyframe's PnP pose; nullopt (result untouched) when
+  /// no pose is found or it has too few inliers.
+  std::optional<std::vector<map::MapPointId>> trackFromReference(const Frame& frame,
+                                                                 TrackingResult& result,
+                                                                 bool count_visible);
+  ReferenceView referenceView() const;
   std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
-                                             TrackingResult& result);
+                                             TrackingResult& result, bool count_visible);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                          const Prediction& prediction, TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;

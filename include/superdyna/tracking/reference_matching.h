@@ -1,0 +1,67 @@
+#pragma once
+// Pose of a frame from the map points of one keyframe without a pose prediction (ORB-SLAM's
+// TrackReferenceKeyFrame, with exhaustive descriptor matching in place of a bag of words).
+//
+// Tracking normally matches the local map by projection around a predicted pose. When the motion
+// is unknown (the first frame after a new map, before anything gives a velocity) or that search
+// fails, the prediction can be wrong by far more than the search radius. Learned descriptors make
+// it worse: sampled from a 1/8-resolution map, a wrong keypoint a few pixels from the true one
+// looks alike, so the projection search happily returns matches that pull the pose back towards
+// the wrong prediction (synthetic V1_03 at 2 m/s: XFeat estimated 1.6 cm for a 9.7 cm step).
+//
+// Here the keyframe's keypoints that observe map points are matched to the frame exhaustively
+// (mutual nearest neighbours with the ratio test, within one semantic class), and a RANSAC PnP on
+// the 3D-2D correspondences gives a pose that does not depend on any prediction. The tracker then
+// runs its usual local-map search from that pose.
+
+#include <Eigen/Core>
+#include <optional>
+#include <vector>
+
+#include "superdyna/core/geometry.h"
+#include "superdyna/features/feature_set.h"
+#include "superdyna/features/matcher.h"
+#include "superdyna/tracking/frame.h"
+
+namespace superdyna::tracking {
+
+/// Mutual nearest neighbours, ratio 0.8, Hamming <= 64 bits / L2 <= 1, rotation-consistency check
+/// for oriented keypoints (ORB).
+inline features::BruteForceMatchOptions defaultReferenceMatching() {
+  features::BruteForceMatchOptions options;
+  options.check_orientation = true;
+  return options;
+}
+
+struct ReferenceMatchingOptions {
+  /// Use it for frames whose motion is unknown and as a retry before a frame is declared lost.
+  bool enabled = true;
+  /// Class-wise as features.class_wise_matching (set by the System).
+  features::BruteForceMatchOptions matching = defaultReferenceMatching();
+  double ransac_threshold_px = 3.0;  ///< PnP inlier bound [px, at the mean focal], > 0.
+  int ransac_iterations = 200;       ///< > 0.
+  double ransac_confidence = 0.999;  ///< In (0, 1).
+
+  void validate() const;
+};
+
+/// The map points a keyframe observes: row i of features (keypoint, descriptor) sees p_w[i].
+struct ReferenceView {
+  features::FeatureSet features;
+  std::vector<Eigen::Vector3d> p_w;
+};
+
+struct ReferencePose {
+  SE3d T_w_b;       ///< Body pose of the frame.
+  int matches = 0;  ///< Descriptor matches the PnP ran on.
+  int inliers = 0;  ///< PnP inliers.
+};
+
+/// The frame's body pose from the view's points, or nullopt when fewer than `min_inliers`
+/// matches or PnP inliers support one. `T_b_c0`: cam0 in the body frame; `focal_px` converts
+/// the RANSAC bound to the normalised coordinates the frame's keypoints carry. Deterministic.
+std::optional<ReferencePose> poseFromReference(const Frame& frame, const ReferenceView& view,
+                                               const SE3d& T_b_c0, double focal_px, int min_inliers,
+                                               const ReferenceMatchingOptions& options);
+
+}  // namespace superdyna::tracking
