@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 #include <ceres/sphere_manifold.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -250,7 +251,9 @@ InertialInitResult initializeInertial(const InertialInitInput& input,
     result.final_cost = summary.final_cost;
     result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
     result.converged = summary.termination_type == ceres::CONVERGENCE;
-    if (summary.termination_type == ceres::FAILURE) {
+    if (!summary.IsSolutionUsable()) {
+      spdlog::warn("inertial initialisation over {} keyframes failed (round {}): {}",
+                   input.T_v_b.size(), round, summary.message);
       throw std::runtime_error("inertial initialisation: Ceres failed: " + summary.message);
     }
   }

@@ -1,6 +1,7 @@
 #include "superdyna/mapping/bundle_adjustment.h"
 
 #include <ceres/ceres.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <memory>
@@ -20,6 +21,12 @@ struct BaObservation {
   map::KeyFrameId keyframe = map::kNoKeyFrame;
   std::shared_ptr<optim::ReprojectionFactor> factor;
   bool left = true;  ///< Right-camera residuals are not removed individually.
+};
+
+/// A reprojection residual before it joins the problem.
+struct BaCandidate {
+  BaObservation observation;
+  bool valid = false;  ///< Evaluable (point in front of the camera) at the initial state.
 };
 
 /// Non-owning wrapper so the BaObservation list can evaluate the factors after solving.
@@ -69,18 +76,24 @@ class Problem {
     loadKeyFrames();
     if (blocks_.size() < 2 || optimisedCount() == 0) return result;
     loadPoints();
-    addReprojections();
+    addReprojections(collectReprojections());
     result.observations = static_cast<int>(observations_.size());
-    if (observations_.empty()) return result;
+    if (observations_.empty()) {
+      result.outliers = removeInvalidAtStart();
+      return result;
+    }
     for (auto& [id, blocks] : blocks_) {
       if (!problem_->HasParameterBlock(blocks.state.pose.data())) continue;
       problem_->SetManifold(blocks.state.pose.data(), new optim::SE3Manifold());
       if (blocks.fixed) problem_->SetParameterBlockConstant(blocks.state.pose.data());
     }
     if (window_.inertial) result.imu_edges = addInertialFactors();
-    solve();
+    if (!solve()) {
+      result.outliers = removeInvalidAtStart();  // the state is left as it was
+      return result;
+    }
     writeBack();
-    result.outliers = removeOutliers();
+    result.outliers = removeInvalidAtStart() + removeOutliers();
     return result;
   }
 
@@ -137,28 +150,60 @@ class Problem {
     }
   }
 
-  void addReprojection(map::KeyFrameId kf_id, map::MapPointId point_id, int camera,
-                       const Eigen::Vector2d& normalized, int octave) {
+  BaCandidate newCandidate(map::KeyFrameId kf_id, map::MapPointId point_id, int camera,
+                           const Eigen::Vector2d& normalized, int octave) const {
     const double sigma = optim::octaveSigmaPx(octave, settings_.sigma0_px, settings_.scale_factor);
     auto factor = std::make_shared<optim::ReprojectionFactor>(
         normalized, cameras_[static_cast<std::size_t>(camera)], sigma);
-    problem_->AddResidualBlock(new BorrowedFactor(factor.get()),
-                               optim::newHuberLoss(settings_.chi2_outlier),
-                               blocks_.at(kf_id).state.pose.data(), points_.at(point_id).data());
-    observations_.push_back({point_id, kf_id, factor, camera == 0});
+    const auto r = factor->residual(optim::fromPoseBlock(blocks_.at(kf_id).state.pose.data()),
+                                    points_.at(point_id));
+    return {{point_id, kf_id, factor, camera == 0}, r.has_value() && r->allFinite()};
   }
 
-  void addReprojections() {
+  /// Every reprojection of the loaded points, evaluated at the initial state.
+  std::vector<BaCandidate> collectReprojections() const {
+    std::vector<BaCandidate> candidates;
     for (const auto& [id, kf] : keyframes_) {
       const RightObservations* right = rightOf(id);
       for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
         const map::MapPointId point_id = kf.map_points[i];
         if (point_id == map::kNoMapPoint || !points_.contains(point_id)) continue;
-        addReprojection(id, point_id, 0, kf.keypoints[i].normalized, kf.keypoints[i].octave);
+        candidates.push_back(
+            newCandidate(id, point_id, 0, kf.keypoints[i].normalized, kf.keypoints[i].octave));
         if (cameras_.size() > 1 && hasRight(right, i)) {
-          addReprojection(id, point_id, 1, *(*right)[i], kf.keypoints[i].octave);
+          candidates.push_back(newCandidate(id, point_id, 1, *(*right)[i], kf.keypoints[i].octave));
         }
       }
+    }
+    return candidates;
+  }
+
+  /// Ceres abandons the whole solve when a residual cannot be evaluated at the initial state (a
+  /// point behind a camera), so such reprojections stay out of the problem; their left
+  /// observations are removed afterwards like any outlier. Points left with fewer than 2 residuals
+  /// are not optimised (as in loadPoints).
+  void addReprojections(const std::vector<BaCandidate>& candidates) {
+    std::map<map::MapPointId, int> valid_counts;
+    for (const BaCandidate& c : candidates) {
+      if (c.valid) ++valid_counts[c.observation.point];
+    }
+    for (const auto& [id, count] : valid_counts) {
+      if (count < 2) points_.erase(id);
+    }
+    for (const BaCandidate& c : candidates) {
+      const BaObservation& o = c.observation;
+      if (!c.valid) {
+        invalid_at_start_.push_back(o);
+        continue;
+      }
+      if (!points_.contains(o.point)) continue;
+      problem_->AddResidualBlock(
+          new BorrowedFactor(o.factor.get()), optim::newHuberLoss(settings_.chi2_outlier),
+          blocks_.at(o.keyframe).state.pose.data(), points_.at(o.point).data());
+      observations_.push_back(o);
+    }
+    for (const BaObservation& o : invalid_at_start_) {
+      if (!valid_counts.contains(o.point)) points_.erase(o.point);  // no valid residual at all
     }
   }
 
@@ -201,7 +246,8 @@ class Problem {
     }
   }
 
-  void solve() {
+  /// False (with a warning) when Ceres gives no usable solution; the state is then not written.
+  bool solve() {
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::DENSE_SCHUR;
     solver.max_num_iterations = settings_.iterations;
@@ -209,6 +255,10 @@ class Problem {
     solver.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(solver, problem_.get(), &summary);
+    if (summary.IsSolutionUsable()) return true;
+    spdlog::warn("{} bundle adjustment of {} keyframes failed, map left unchanged: {}",
+                 window_.inertial ? "inertial" : "visual", optimisedCount(), summary.message);
+    return false;
   }
 
   SE3d bodyPose(const KeyFrameBlocks& blocks) const {
@@ -229,6 +279,22 @@ class Problem {
     }
     for (const auto& [id, p_w] : points_)
       map_.setMapPointPosition(id, p_w);
+  }
+
+  /// Erases the left observations that could not be evaluated at the initial state; returns how
+  /// many were erased.
+  int removeInvalidAtStart() {
+    int removed = 0;
+    std::set<map::MapPointId> touched;
+    for (const BaObservation& o : invalid_at_start_) {
+      if (!o.left) continue;
+      if (map_.eraseObservation(o.point, o.keyframe)) ++removed;
+      touched.insert(o.point);
+    }
+    for (const map::MapPointId id : touched) {
+      if (!map_.updateNormalAndDistances(id)) map_.eraseMapPoint(id);
+    }
+    return removed;
   }
 
   int removeOutliers() {
@@ -259,6 +325,7 @@ class Problem {
   std::map<map::KeyFrameId, KeyFrameBlocks> blocks_;
   std::map<map::MapPointId, Eigen::Vector3d> points_;
   std::vector<BaObservation> observations_;
+  std::vector<BaObservation> invalid_at_start_;  ///< Not in the problem: behind the camera.
 };
 
 }  // namespace

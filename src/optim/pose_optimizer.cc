@@ -1,5 +1,7 @@
 #include "superdyna/optim/pose_optimizer.h"
 
+#include <spdlog/spdlog.h>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
@@ -121,12 +123,15 @@ SE3d PoseOptimizer::optimizeOnce(const SE3d& T_w_b, const std::vector<Reprojecti
                                  const std::vector<bool>& use, bool robust,
                                  const std::optional<PosePrior>& prior) const {
   PoseBlock pose = toPoseBlock(T_w_b);
+  const SE3d T_w_b_start = fromPoseBlock(pose.data());
   std::vector<std::array<double, 3>> points(observations.size());
   ceres::Problem problem;
   problem.AddParameterBlock(pose.data(), kPoseBlockSize, new SE3Manifold());
   for (std::size_t i = 0; i < observations.size(); ++i) {
     if (!use[i]) continue;
     const PoseObservation& observation = observations[i];
+    // Ceres abandons the whole solve when a residual cannot be evaluated at the initial pose.
+    if (!std::isfinite(chi2(observation, cameras[observation.camera], T_w_b_start))) continue;
     Eigen::Map<Eigen::Vector3d>(points[i].data()) = observation.p_w;
     problem.AddParameterBlock(points[i].data(), 3);
     problem.SetParameterBlockConstant(points[i].data());
@@ -141,6 +146,11 @@ SE3d PoseOptimizer::optimizeOnce(const SE3d& T_w_b, const std::vector<Reprojecti
   if (problem.NumResidualBlocks() == 0) return T_w_b;
   ceres::Solver::Summary summary;
   ceres::Solve(solverOptions(options_.iterations_per_round), &problem, &summary);
+  if (!summary.IsSolutionUsable()) {
+    spdlog::warn("pose optimisation over {} residuals failed, pose left unchanged: {}",
+                 problem.NumResidualBlocks(), summary.message);
+    return T_w_b;
+  }
   return fromPoseBlock(pose.data());
 }
 

@@ -2,6 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <optional>
+#include <vector>
+
 #include "mapping/mapping_test_scene.h"
 
 namespace superdyna::mapping {
@@ -91,6 +96,76 @@ TEST(BundleAdjustmentTest, VisualBaLeavesVelocitiesAlone) {
   const WindowErrors after = windowErrors(scene, first);
   EXPECT_LT(after.position_m, 0.002);
   EXPECT_NEAR(after.velocity, std::sqrt(0.15 * 0.15 + 0.1 * 0.1 + 0.05 * 0.05), 1e-12);
+}
+
+/// Moves a point observed by `keyframe` along the viewing ray of another observer until it is
+/// behind `keyframe` (by 5 cm or more) and at least 5 cm in front of two or more other observers,
+/// then erases its observations by every keyframe it is neither behind nor in front of that way:
+/// the point ends up observed by `keyframe`, which it is behind, and by keyframes it is in front
+/// of (at the map's current poses). Returns the point's id.
+map::MapPointId placeBehind(test::MappingScene& scene, map::KeyFrameId keyframe) {
+  const auto depth = [&](map::KeyFrameId id, const Eigen::Vector3d& p_w) {
+    return (scene.map->keyFramePose(id)->inverse() * p_w).z();
+  };
+  for (const map::MapPointId id : scene.point_ids) {
+    const map::MapPoint point = *scene.map->mapPoint(id);
+    if (!point.observations.contains(keyframe)) continue;
+    for (const auto& [ray_kf, index] : point.observations) {
+      const Eigen::Vector3d centre = scene.map->keyFramePose(ray_kf)->t;
+      for (double s = 0.01; s < 1.0; s += 0.01) {
+        const Eigen::Vector3d p_w = centre + s * (point.p_w - centre);
+        if (depth(keyframe, p_w) > -0.05) continue;
+        std::vector<map::KeyFrameId> elsewhere;
+        for (const auto& [observer, keypoint] : point.observations) {
+          if (observer != keyframe && depth(observer, p_w) < 0.05) elsewhere.push_back(observer);
+        }
+        if (point.observations.size() - elsewhere.size() < 3) continue;
+        for (const map::KeyFrameId observer : elsewhere)
+          scene.map->eraseObservation(id, observer);
+        scene.map->setMapPointPosition(id, p_w);
+        scene.map->updateNormalAndDistances(id);
+        return id;
+      }
+    }
+  }
+  return map::kNoMapPoint;
+}
+
+TEST(BundleAdjustmentTest, APointBehindOneKeyFrameDoesNotStopTheBaAndLosesThatObservation) {
+  // Ceres abandons the whole solve when a residual cannot be evaluated at the initial state, so
+  // this one observation used to leave every keyframe of the window where it was.
+  constexpr std::size_t kWindow = 6;
+  test::MappingScene scene = perturbedScene(kWindow);
+  const std::size_t first = scene.ids.size() - kWindow;
+  const map::KeyFrameId behind_kf = scene.ids.back();  // several others are behind it
+  const map::MapPointId behind_point = placeBehind(scene, behind_kf);
+  ASSERT_NE(behind_point, map::kNoMapPoint);
+  const WindowErrors before = windowErrors(scene, first);
+  EXPECT_GT(before.position_m, 0.03);
+  EXPECT_GT(before.rotation_deg, 0.5);
+
+  BundleAdjustmentWindow window;
+  window.optimised.assign(scene.ids.begin() + static_cast<std::ptrdiff_t>(first), scene.ids.end());
+  window.fixed = {scene.ids[first - 1]};
+  const BundleAdjustmentResult result =
+      bundleAdjust(*scene.map, window, {scene.camera}, {}, BundleAdjustmentSettings{});
+  const WindowErrors after = windowErrors(scene, first);
+  std::printf(
+      "point behind keyframe %d: window error %.1f mm / %.3f deg -> %.2f mm / %.4f deg, "
+      "%d residuals, %d outliers removed\n",
+      static_cast<int>(behind_kf), 1e3 * before.position_m, before.rotation_deg,
+      1e3 * after.position_m, after.rotation_deg, result.observations, result.outliers);
+  EXPECT_LT(after.position_m, 0.002);
+  EXPECT_LT(after.rotation_deg, 0.05);
+  EXPECT_EQ(result.outliers, 1);  // only the observation from behind
+  const map::KeyFrame kf = *scene.map->keyFrame(behind_kf);
+  EXPECT_EQ(std::count(kf.map_points.begin(), kf.map_points.end(), behind_point), 0);
+  // Its observers in front keep it, and the BA pulls it back where they agree.
+  const std::optional<map::MapPoint> point = scene.map->mapPoint(behind_point);
+  ASSERT_TRUE(point.has_value());
+  EXPECT_FALSE(point->observations.contains(behind_kf));
+  EXPECT_GE(point->observations.size(), 2u);
+  EXPECT_EQ(scene.map->consistencyError(), "");
 }
 
 TEST(BundleAdjustmentTest, InertialWindowNeedsTheImuContext) {

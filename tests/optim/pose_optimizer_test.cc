@@ -243,6 +243,32 @@ TEST(PoseOptimizerTest, ReincludesInliersRejectedInEarlierRounds) {
   EXPECT_LT(s.rotation_error_deg, 0.1);
 }
 
+TEST(PoseOptimizerTest, AMatchBehindTheCameraIsLeftOutAndClassifiedAsAnOutlier) {
+  // A residual that cannot be evaluated at the initial pose makes Ceres abandon the whole solve.
+  std::mt19937 rng(61);
+  SceneOptions options;
+  options.outlier_fraction = 0.0;
+  Scene scene = makeScene(options, rng);
+  const SE3d T_w_b_initial = perturb(scene.T_w_b_true, 0.05, 2.0 / kDegPerRad, rng);
+  // Match 0's point mirrored through the camera plane of the initial pose.
+  PoseObservation& behind = scene.observations[0];
+  const ReprojectionCamera& camera = scene.cameras[static_cast<std::size_t>(behind.camera)];
+  const Eigen::Vector3d p_c = worldToCamera(T_w_b_initial, camera.T_b_c, behind.p_w);
+  behind.p_w = T_w_b_initial * (camera.T_b_c * Eigen::Vector3d(p_c.x(), p_c.y(), -p_c.z()));
+  ASSERT_LT(worldToCamera(T_w_b_initial, camera.T_b_c, behind.p_w).z(), -1.0);
+
+  const PoseOptimizationResult result =
+      PoseOptimizer().optimize(T_w_b_initial, scene.cameras, scene.observations);
+  const Scores s = score(scene, result);
+  print("one match behind the camera", s);
+  EXPECT_TRUE(result.success);
+  EXPECT_LT(s.position_error_m, 0.01);
+  EXPECT_LT(s.rotation_error_deg, 0.1);
+  EXPECT_FALSE(result.inliers[0]);
+  EXPECT_TRUE(std::isinf(result.chi2[0]));
+  EXPECT_GE(s.inliers_kept, 0.9 * s.num_inliers);
+}
+
 TEST(PoseOptimizerTest, PriorAloneGivesThePriorAndAStrongPriorDominates) {
   std::mt19937 rng(41);
   const Scene scene = makeScene({}, rng);

@@ -9,8 +9,12 @@
 // predecessor when that is optimised or fixed (a fixed predecessor anchors the window with its
 // pose, velocity and biases held). The pose blocks then hold the IMU poses T_w_i = T_w_b T_b_i and
 // the cameras are re-expressed in the IMU frame, so that body and IMU may differ.
+// Reprojections that cannot be evaluated at the initial state (point behind the camera) stay out
+// of the problem, since Ceres would abandon the whole solve; points left with fewer than 2
+// residuals are not optimised.
 // After solving: poses (and inertial states) and points are written back, left observations
-// failing the chi^2 test are removed and the points' normals and distances are updated.
+// failing the chi^2 test or left out as above are removed and the points' normals and distances
+// are updated. When Ceres gives no usable solution, a warning is logged and nothing is written.
 
 #include <map>
 #include <optional>
@@ -54,7 +58,7 @@ struct BundleAdjustmentImu {
 struct BundleAdjustmentResult {
   int observations = 0;  ///< Reprojection residuals.
   int imu_edges = 0;     ///< Preintegration factors.
-  int outliers = 0;      ///< Observations removed after the solve.
+  int outliers = 0;      ///< Observations removed (chi^2 test or behind the camera at the start).
 };
 
 /// Runs the BA on the map. `cameras`: [0] left, [1] right (optional), in the body frame;

@@ -98,7 +98,9 @@ class PoseOptimizer {
   void classify(const std::vector<ReprojectionCamera>& cameras,
                 const std::vector<PoseObservation>& observations,
                 PoseOptimizationResult& result) const;
-  /// One optimisation over the observations flagged in `use`; returns the new pose.
+  /// One optimisation over the observations flagged in `use` that can be evaluated at `T_w_b`
+  /// (in front of the camera); returns the new pose, or `T_w_b` (with a warning) when Ceres gives
+  /// no usable solution.
   SE3d optimizeOnce(const SE3d& T_w_b, const std::vector<ReprojectionCamera>& cameras,
                     const std::vector<PoseObservation>& observations, const std::vector<bool>& use,
                     bool robust, const std::optional<PosePrior>& prior) const;
