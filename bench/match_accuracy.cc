@@ -108,6 +108,8 @@ int main(int argc, char** argv) {
   // keypoints follow the scene, > 0 when they lag behind it (stick to image positions).
   double lag_numerator = 0.0;
   double lag_denominator = 0.0;
+  const double lag_min_px = std::getenv("LAG_MIN") ? std::atof(std::getenv("LAG_MIN")) : 0.0;
+  const double lag_max_px = std::getenv("LAG_MAX") ? std::atof(std::getenv("LAG_MAX")) : 5.0;
   std::size_t index = 0;
   while (auto bundle = source->next()) {
     const bool is_source = index % static_cast<std::size_t>(step) == 0;
@@ -145,7 +147,7 @@ int main(int argc, char** argv) {
               const Eigen::Vector2d error = pixel - target;
               const Eigen::Vector2d motion =
                   target - query.keypoints[static_cast<std::size_t>(m.query)].pixel;
-              if ((pixel - target).norm() < 5.0) {
+              if ((pixel - target).norm() >= lag_min_px && (pixel - target).norm() < lag_max_px) {
                 lag_numerator -= error.dot(motion);
                 lag_denominator += motion.squaredNorm();
               }

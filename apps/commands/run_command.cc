@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <string>
 
@@ -14,6 +13,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/system/frame_log.h"
 #include "superdyna/system/system.h"
 
 namespace superdyna::apps {
@@ -104,25 +104,6 @@ void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::Align
     fmt::print("ATE not available: {}\n", e.what());
   }
 }
-
-/// `--frame-log`: one CSV row per frame with the tracker's view of it, for finding where and why
-/// tracking failed.
-class FrameLog {
- public:
-  explicit FrameLog(const fs::path& path) : out_(path) {
-    if (!out_) {
-      throw OptionError("--frame-log", "cannot open '" + path.string() + "' for writing");
-    }
-    out_ << "frame,state,matches,inliers,from_reference,keyframe\n";
-  }
-  void write(std::size_t frame, const tracking::TrackingResult& r) {
-    out_ << frame << ',' << tracking::toString(r.state) << ',' << r.matches << ',' << r.inliers
-         << ',' << (r.from_reference ? 1 : 0) << ',' << (r.keyframe ? 1 : 0) << '\n';
-  }
-
- private:
-  std::ofstream out_;
-};
 
 class RunCommand : public Command {
  public:
@@ -216,8 +197,8 @@ class RunCommand : public Command {
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
                source->size());
     ProgressLine progress;
-    std::optional<FrameLog> frame_log;
-    if (frame_log_) frame_log.emplace(*frame_log_);
+    std::optional<system::FrameLog> frame_log;
+    if (frame_log_) frame_log.emplace(*frame_log_, "--frame-log");
     slam.run(*source, [&](const tracking::TrackingResult& result) {
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       progress.update(slam.timings().frames, source->size(), result, slam);

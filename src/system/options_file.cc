@@ -134,6 +134,8 @@ std::map<std::string, Section> sectionsOf(SystemOptions& o) {
         {"reference_max_l2_distance", doubleSetter(t.reference_matching.matching.max_l2_distance)},
         {"reference_ratio", doubleSetter(t.reference_matching.matching.ratio)},
         {"reference_ransac_threshold_px", doubleSetter(t.reference_matching.ransac_threshold_px)},
+        {"reference_search_radius_px", doubleSetter(t.reference_matching.search_radius_px)},
+        {"reference_min_inliers", intSetter(t.reference_matching.min_inliers)},
         {"imu_prior_velocity_sigma", doubleSetter(t.imu_prior.velocity_sigma)},
         {"imu_prior_position_sigma_m", doubleSetter(t.imu_prior.position_sigma_m)},
         {"imu_prior_rotation_sigma_deg", doubleSetter(t.imu_prior.rotation_sigma_deg)}}},

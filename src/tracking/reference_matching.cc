@@ -53,15 +53,19 @@ void ReferenceMatchingOptions::validate() const {
   if (ransac_iterations <= 0) {
     throw OptionError("tracker.reference_matching.ransac_iterations", "must be > 0");
   }
+  if (min_inliers < 3) throw OptionError("tracker.reference_matching.min_inliers", "must be >= 3");
+  if (!(search_radius_px > 0.0)) {
+    throw OptionError("tracker.reference_matching.search_radius_px", "must be > 0");
+  }
   if (!(ransac_confidence > 0.0 && ransac_confidence < 1.0)) {
     throw OptionError("tracker.reference_matching.ransac_confidence", "must be in (0, 1)");
   }
 }
 
 std::optional<ReferencePose> poseFromReference(const Frame& frame, const ReferenceView& view,
-                                               const SE3d& T_b_c0, double focal_px, int min_inliers,
+                                               const SE3d& T_b_c0, double focal_px,
                                                const ReferenceMatchingOptions& options) {
-  const int needed = std::max(min_inliers, kMinPnpCorrespondences);
+  const int needed = std::max(options.min_inliers, kMinPnpCorrespondences);
   if (static_cast<int>(view.features.size()) < needed || static_cast<int>(frame.size()) < needed) {
     return std::nullopt;
   }

@@ -15,6 +15,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+features::ProjectionMatchOptions withRadius(features::ProjectionMatchOptions options,
+                                            double radius_px) {
+  options.radius_px = radius_px;
+  return options;
+}
+
 double millisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
@@ -116,7 +122,7 @@ Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
   if (!has_last_) return {};
   if (std::optional<InertialPrediction> inertial = predictInertial(frame)) {
     const SE3d T_w_b = inertial->T_w_b;
-    return {T_w_b, true, std::move(inertial)};
+    return {T_w_b, true, std::move(inertial), std::nullopt};
   }
   SE3d motion = has_motion_ ? motion_ : SE3d();
   const auto& samples = frame.imu;
@@ -125,14 +131,14 @@ Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
     imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
     preintegration.integrateBetween(samples, t_last_ns_, frame.t_ns);
     if (options_.imu_translation_prediction && has_velocity_ && inertialReady()) {
-      return {predictWithImu(preintegration), true, std::nullopt};
+      return {predictWithImu(preintegration), true, std::nullopt, std::nullopt};
     }
     const Eigen::Matrix3d R_b_i = imu_->T_b_i.rotation();
     const Eigen::Matrix3d dR = R_b_i * preintegration.deltaRotation() * R_b_i.transpose();
     motion = SE3d(Eigen::Quaterniond(dR).normalized(), motion.t);
-    return {T_w_b_last_ * motion, true, std::nullopt};
+    return {T_w_b_last_ * motion, true, std::nullopt, std::nullopt};
   }
-  return {T_w_b_last_ * motion, false, std::nullopt};
+  return {T_w_b_last_ * motion, false, std::nullopt, std::nullopt};
 }
 
 SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
@@ -251,13 +257,16 @@ std::optional<std::vector<map::MapPointId>> Tracker::trackFromReference(const Fr
   if (!options_.reference_matching.enabled) return std::nullopt;
   const std::optional<ReferencePose> pose =
       poseFromReference(frame, referenceView(), T_b_c0_, 0.5 * (camera0_.fx() + camera0_.fy()),
-                        options_.min_inliers, options_.reference_matching);
+                        options_.reference_matching);
   if (!pose) return std::nullopt;
   TrackingResult attempt = result;
-  const Prediction from_reference{pose->T_w_b, false, std::nullopt};
+  const Prediction from_reference{pose->T_w_b, false, std::nullopt,
+                                  options_.reference_matching.search_radius_px};
   std::vector<map::MapPointId> tracked =
       trackLocalMap(frame, from_reference, attempt, count_visible);
-  if (attempt.inliers < options_.min_inliers) return std::nullopt;
+  if (attempt.inliers < std::max(options_.min_inliers, options_.reference_matching.min_inliers)) {
+    return std::nullopt;
+  }
   attempt.from_reference = true;
   result = attempt;
   return tracked;
@@ -304,7 +313,12 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
   std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
   const std::vector<LocalPoint> points = localPoints();
   std::vector<features::Match> matches =
-      matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true, count_visible);
+      prediction.search_radius_px
+          ? matchLocalPoints(frame, points, prediction.T_w_b,
+                             withRadius(options_.projection, *prediction.search_radius_px), false,
+                             count_visible)
+          : matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true,
+                             count_visible);
   result.matches = static_cast<int>(matches.size());
   for (const features::Match& m : matches) {
     int point_class = features::kClassBackground;

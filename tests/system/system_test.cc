@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -13,6 +14,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/sim/sequence_generator.h"
+#include "superdyna/system/frame_log.h"
 #include "support/generated_sequence.h"
 #include "support/test_support.h"
 
@@ -253,6 +255,42 @@ TEST(StereoSlam, RecoversFromLostTrackingWithANewMap) {
   EXPECT_LE(lost, 4u);
   EXPECT_EQ(slam.resets(), 1);
   EXPECT_GT(slam.numMapPoints(), 100u);
+}
+
+TEST(FrameLog, WritesOneRowPerFrameWithTheTrackerState) {
+  const test::ScratchDir scratch("frame_log_test");
+  io::DatasetSourceOptions source_options;
+  source_options.max_frames = 30;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
+  SystemOptions options;
+  options.deterministic = true;
+  System slam(options, source->camera0(), *source->camera1(), source->imu());
+  {
+    FrameLog log(scratch / "frames.csv", "--frame-log");
+    slam.run(*source, [&](const tracking::TrackingResult& result) {
+      log.write(slam.timings().frames - 1, result);
+    });
+  }
+  std::ifstream in(scratch / "frames.csv");
+  std::vector<std::string> rows;
+  for (std::string line; std::getline(in, line);)
+    rows.push_back(line);
+  ASSERT_EQ(rows.size(), 31u);
+  EXPECT_EQ(rows[0], "frame,state,matches,inliers,from_reference,keyframe");
+  EXPECT_EQ(rows[1], "0,initialized,0,0,0,1");
+  // The second frame of a map has no motion model: tracked from the reference keyframe.
+  EXPECT_EQ(rows[2].substr(0, 11), "1,tracking,");
+  EXPECT_EQ(rows[2].substr(rows[2].size() - 4, 2), ",1");
+  std::size_t keyframes = 0;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_EQ(rows[i].substr(0, rows[i].find(',')), std::to_string(i - 1));
+    keyframes += rows[i].back() == '1' ? 1 : 0;
+  }
+  EXPECT_EQ(keyframes, slam.timings().keyframes);
+  EXPECT_EQ(slam.referenceTrackedFrames(), 1u);
+  test::expectError<OptionError>(
+      [&] { FrameLog bad(scratch / "missing" / "frames.csv", "--frame-log"); },
+      {"--frame-log", "cannot open"});
 }
 
 struct BridgedRun {

@@ -402,7 +402,7 @@ TEST(ReferenceMatching, PoseFromDescriptorsAloneDespiteOutliers) {
 
   ReferenceMatchingOptions options;
   const std::optional<ReferencePose> pose =
-      poseFromReference(frame, view, rig.T_b_c0(), rig.fx, 15, options);
+      poseFromReference(frame, view, rig.T_b_c0(), rig.fx, options);
   ASSERT_TRUE(pose.has_value());
   EXPECT_EQ(pose->matches, 150);  // the clutter matches nothing
   EXPECT_EQ(pose->inliers, 130);  // the moved 20 are RANSAC outliers
@@ -410,7 +410,8 @@ TEST(ReferenceMatching, PoseFromDescriptorsAloneDespiteOutliers) {
   EXPECT_LT((pose->T_w_b.inverse() * T_w_b).q.angularDistance(Eigen::Quaterniond::Identity()),
             1e-6);
   // Too few points for the required support: no pose rather than a guess.
-  EXPECT_FALSE(poseFromReference(frame, view, rig.T_b_c0(), rig.fx, 200, options).has_value());
+  options.min_inliers = 200;
+  EXPECT_FALSE(poseFromReference(frame, view, rig.T_b_c0(), rig.fx, options).has_value());
   options.ransac_threshold_px = 0.0;
   test::expectError<OptionError>([&] { options.validate(); },
                                  {"tracker.reference_matching.ransac_threshold_px"});

@@ -198,6 +198,9 @@ class Tracker {
     bool from_imu = false;  ///< Rotation from gyroscope preintegration.
     /// After the inertial initialisation: predicted from the newest keyframe, with a pose prior.
     std::optional<InertialPrediction> inertial;
+    /// A pose known to a few pixels (reference PnP): search this radius instead of
+    /// projection.radius_px, without the wide retry.
+    std::optional<double> search_radius_px;
   };
   std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
   /// With IMU: runs the local mapper's inertial (re-)initialisation of the map when it is due.

@@ -1,0 +1,26 @@
+#pragma once
+// `superdyna run --frame-log FILE`: one CSV row per frame with the tracker's view of it (state,
+// map matches, pose inliers, whether the pose came from the reference keyframe, keyframe), for
+// finding where and why tracking failed. Header line:
+//   frame,state,matches,inliers,from_reference,keyframe
+// frame is the 0-based index in the served sequence; state is tracking::toString().
+
+#include <cstddef>
+#include <filesystem>
+#include <fstream>
+
+#include "superdyna/tracking/tracker.h"
+
+namespace superdyna::system {
+
+class FrameLog {
+ public:
+  /// Creates (truncates) `path`; OptionError naming `option` when it cannot be opened.
+  FrameLog(const std::filesystem::path& path, const std::string& option);
+  void write(std::size_t frame, const tracking::TrackingResult& result);
+
+ private:
+  std::ofstream out_;
+};
+
+}  // namespace superdyna::system
