@@ -5,7 +5,10 @@
 // Hamming bound, ratio of the config's `projection` section) then picks a keypoint of frame
 // i + gap. The distance between that keypoint and the projection is the match's error: small
 // errors measure keypoint localisation, large ones wrong matches. Also reported: the distance from
-// each projection to the nearest keypoint (repeatability) whatever the descriptors say.
+// each projection to the nearest keypoint (repeatability) whatever the descriptors say, overall
+// and by the point's image motion between the frames (< 5, 5-15, >= 15 px), and the keypoint lag:
+// the least-squares slope of the match errors (< 5 px) onto the image motion, 0 when keypoints
+// follow the scene, 1 when they stay where they were in frame i.
 //
 // With SWEEP, the match statistics are also given for a few other radii, ratios and distance
 // bounds (same keypoints).
@@ -64,6 +67,19 @@ void report(const std::string& what, const std::vector<double>& errors) {
       shareBelow(errors, 2.0), shareBelow(errors, 3.0), 100.0 - shareBelow(errors, 5.0));
 }
 
+/// Least-squares slope of the match errors onto the image motion (file comment).
+struct LagFit {
+  double numerator = 0.0;
+  double denominator = 0.0;
+
+  void add(const Eigen::Vector2d& error, const Eigen::Vector2d& motion) {
+    if (!(error.norm() < 5.0)) return;  // wrong matches say nothing about localisation
+    numerator -= error.dot(motion);
+    denominator += motion.squaredNorm();
+  }
+  double slope() const { return denominator > 0.0 ? numerator / denominator : 0.0; }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -104,12 +120,7 @@ int main(int argc, char** argv) {
   std::vector<double> nearest_errors;
   std::vector<double> nearest_by_motion[3];  // image motion < 5, 5-15, >= 15 px
   std::size_t predicted_count = 0;
-  // Least-squares slope of the match error onto the image motion (matches within 5 px): 0 when
-  // keypoints follow the scene, > 0 when they lag behind it (stick to image positions).
-  double lag_numerator = 0.0;
-  double lag_denominator = 0.0;
-  const double lag_min_px = std::getenv("LAG_MIN") ? std::atof(std::getenv("LAG_MIN")) : 0.0;
-  const double lag_max_px = std::getenv("LAG_MAX") ? std::atof(std::getenv("LAG_MAX")) : 5.0;
+  LagFit lag;
   std::size_t index = 0;
   while (auto bundle = source->next()) {
     const bool is_source = index % static_cast<std::size_t>(step) == 0;
@@ -144,13 +155,8 @@ int main(int argc, char** argv) {
             const Eigen::Vector2d& target = predicted[static_cast<std::size_t>(m.query)];
             match_errors[v].push_back((pixel - target).norm());
             if (v == 0) {
-              const Eigen::Vector2d error = pixel - target;
-              const Eigen::Vector2d motion =
-                  target - query.keypoints[static_cast<std::size_t>(m.query)].pixel;
-              if ((pixel - target).norm() >= lag_min_px && (pixel - target).norm() < lag_max_px) {
-                lag_numerator -= error.dot(motion);
-                lag_denominator += motion.squaredNorm();
-              }
+              lag.add(pixel - target,
+                      target - query.keypoints[static_cast<std::size_t>(m.query)].pixel);
             }
           }
         }
@@ -177,7 +183,6 @@ int main(int argc, char** argv) {
   report("nearest, motion<5px", nearest_by_motion[0]);
   report("nearest, 5-15px", nearest_by_motion[1]);
   report("nearest, >=15px", nearest_by_motion[2]);
-  std::printf("keypoint lag behind the image motion (matches < 5 px): %.3f\n",
-              lag_denominator > 0.0 ? lag_numerator / lag_denominator : 0.0);
+  std::printf("keypoint lag behind the image motion (matches < 5 px): %.3f\n", lag.slope());
   return 0;
 }
