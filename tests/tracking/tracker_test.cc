@@ -166,6 +166,60 @@ TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
   EXPECT_GE(waiting.keyframes.size(), 2 * overdue_only.keyframes.size());
 }
 
+/// Keyframes of a mono-inertial run over monoSequence() with a busy mapper: whether each left
+/// mapping jobs queued, before and after the inertial initialisation.
+struct MonoInertialKeyFrames {
+  std::vector<std::size_t> pending_before_init;
+  std::vector<std::size_t> pending_after_init;
+};
+
+MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
+  io::DatasetSourceOptions source_options;
+  source_options.stereo = false;
+  source_options.inertial = true;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, monoSequence(), source_options);
+  FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
+  mapping::LocalMapperOptions mapping;
+  mapping.triangulate = true;
+  mapping.inertial = true;
+  mapping.inertial_init.min_keyframes = 5;
+  mapping.inertial_init.min_duration_s = 1.0;
+  mapping.inertial_init.estimate_scale = true;
+  mapping.inertial_init.min_scale_excitation = 0.05;  // the street flight is smooth
+  TrackerOptions options;
+  options.mono_inertial_wait_for_keyframe_ba = wait_for_keyframe_ba;
+  Tracker tracker(options, PyramidInfo{}, mapping, source->camera0(), std::nullopt, source->imu());
+  ManualMappingSink busy(false);
+  tracker.setMappingSink(&busy);
+  MonoInertialKeyFrames out;
+  while (const auto bundle = source->next()) {
+    const bool initialized = tracker.inertialInitialized();
+    const TrackingResult result = tracker.track(front_end.build(*bundle));
+    if (!result.keyframe || result.state != TrackingState::kTracking) continue;
+    (initialized ? out.pending_after_init : out.pending_before_init).push_back(busy.pending());
+  }
+  return out;
+}
+
+TEST(MonoTracker, MonoInertialWaitsForEachKeyFramesLocalBaOnceInitialised) {
+  // The IMU prediction of the next frames starts from the newest keyframe's state, so after the
+  // inertial initialisation tracking waits for that keyframe's local BA: no job is left queued.
+  const MonoInertialKeyFrames waiting = trackMonoInertial(true);
+  ASSERT_FALSE(waiting.pending_before_init.empty());
+  ASSERT_GE(waiting.pending_after_init.size(), 3u);
+  // Before it the mapper stays busy (except at keyframes that attempt the initialisation).
+  EXPECT_GT(
+      *std::max_element(waiting.pending_before_init.begin(), waiting.pending_before_init.end()),
+      0u);
+  for (const std::size_t pending : waiting.pending_after_init)
+    EXPECT_EQ(pending, 0u);
+  // Without the wait the keyframe's jobs stay queued for the mapper, as before the init.
+  const MonoInertialKeyFrames not_waiting = trackMonoInertial(false);
+  ASSERT_FALSE(not_waiting.pending_after_init.empty());
+  for (const std::size_t pending : not_waiting.pending_after_init)
+    EXPECT_GT(pending, 0u);
+}
+
 TEST(MonoTracker, KeyFramesKeepTheMinimumIntervalUnlessTrackingIsWeak) {
   TrackerOptions options;
   options.keyframe_tracked_ratio = 0.9;
