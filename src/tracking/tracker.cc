@@ -240,20 +240,34 @@ void Tracker::initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult
 
 std::vector<map::MapPointId> Tracker::trackFrame(const Frame& frame, const Prediction& prediction,
                                                  TrackingResult& result) {
-  // Visibility is counted by the first search of the frame only.
   const bool motion_unknown = !prediction.inertial && !has_motion_;
   if (motion_unknown) {
-    if (auto tracked = trackFromReference(frame, result, true)) return std::move(*tracked);
+    if (auto from_reference = trackFromReference(frame, result)) {
+      return countObservations(std::move(*from_reference), true);
+    }
   }
-  std::vector<map::MapPointId> tracked = trackLocalMap(frame, prediction, result, !motion_unknown);
-  if (result.inliers >= options_.min_inliers || motion_unknown) return tracked;
-  if (auto retried = trackFromReference(frame, result, false)) return std::move(*retried);
-  return tracked;
+  LocalMapTrack track = trackLocalMap(frame, prediction, result);
+  const bool tracked = result.inliers >= options_.min_inliers;
+  if (!tracked && !motion_unknown) {
+    if (auto from_reference = trackFromReference(frame, result)) {
+      return countObservations(std::move(*from_reference), true);
+    }
+  }
+  return countObservations(std::move(track), tracked);
 }
 
-std::optional<std::vector<map::MapPointId>> Tracker::trackFromReference(const Frame& frame,
-                                                                        TrackingResult& result,
-                                                                        bool count_visible) {
+std::vector<map::MapPointId> Tracker::countObservations(LocalMapTrack track, bool found) {
+  for (const map::MapPointId id : track.visible)
+    map_->increaseVisible(id);
+  if (found) {
+    for (const map::MapPointId id : track.tracked)
+      if (id != map::kNoMapPoint) map_->increaseFound(id);
+  }
+  return std::move(track.tracked);
+}
+
+std::optional<Tracker::LocalMapTrack> Tracker::trackFromReference(const Frame& frame,
+                                                                  TrackingResult& result) {
   if (!options_.reference_matching.enabled) return std::nullopt;
   const std::optional<ReferencePose> pose =
       poseFromReference(frame, referenceView(), T_b_c0_, 0.5 * (camera0_.fx() + camera0_.fy()),
@@ -262,14 +276,13 @@ std::optional<std::vector<map::MapPointId>> Tracker::trackFromReference(const Fr
   TrackingResult attempt = result;
   const Prediction from_reference{pose->T_w_b, false, std::nullopt,
                                   options_.reference_matching.search_radius_px};
-  std::vector<map::MapPointId> tracked =
-      trackLocalMap(frame, from_reference, attempt, count_visible);
+  LocalMapTrack track = trackLocalMap(frame, from_reference, attempt);
   if (attempt.inliers < std::max(options_.min_inliers, options_.reference_matching.min_inliers)) {
     return std::nullopt;
   }
   attempt.from_reference = true;
   result = attempt;
-  return tracked;
+  return track;
 }
 
 ReferenceView Tracker::referenceView() const {
@@ -307,18 +320,19 @@ ReferenceView Tracker::referenceView() const {
   return view;
 }
 
-std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
-                                                    const Prediction& prediction,
-                                                    TrackingResult& result, bool count_visible) {
-  std::vector<map::MapPointId> tracked(frame.size(), map::kNoMapPoint);
+Tracker::LocalMapTrack Tracker::trackLocalMap(const Frame& frame, const Prediction& prediction,
+                                              TrackingResult& result) {
+  LocalMapTrack track;
+  track.tracked.assign(frame.size(), map::kNoMapPoint);
+  std::vector<map::MapPointId>& tracked = track.tracked;
   const std::vector<LocalPoint> points = localPoints();
   std::vector<features::Match> matches =
       prediction.search_radius_px
           ? matchLocalPoints(frame, points, prediction.T_w_b,
                              withRadius(options_.projection, *prediction.search_radius_px), false,
-                             count_visible)
+                             &track.visible)
           : matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true,
-                             count_visible);
+                             &track.visible);
   result.matches = static_cast<int>(matches.size());
   for (const features::Match& m : matches) {
     int point_class = features::kClassBackground;
@@ -328,7 +342,7 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
       ++result.cross_class_matches;
     }
   }
-  if (result.matches < options_.min_inliers) return tracked;
+  if (result.matches < options_.min_inliers) return track;
   optim::PoseOptimizationResult pose =
       pose_optimizer_.optimize(prediction.T_w_b, cameras_, poseObservations(frame, points, matches),
                                rotationPrior(prediction));
@@ -345,15 +359,14 @@ std::vector<map::MapPointId> Tracker::trackLocalMap(const Frame& frame,
       result.inliers = leftInliers(pose, matches.size());
     }
   }
-  if (result.inliers < options_.min_inliers) return tracked;
+  if (result.inliers < options_.min_inliers) return track;
   result.T_w_b = pose.T_w_b;
   for (std::size_t k = 0; k < matches.size(); ++k) {
     if (!pose.inliers[k]) continue;
-    const map::MapPointId id = points[static_cast<std::size_t>(matches[k].query)].id;
-    tracked[static_cast<std::size_t>(matches[k].train)] = id;
-    map_->increaseFound(id);
+    tracked[static_cast<std::size_t>(matches[k].train)] =
+        points[static_cast<std::size_t>(matches[k].query)].id;
   }
-  return tracked;
+  return track;
 }
 
 std::optional<std::pair<optim::PoseOptimizationResult, std::vector<features::Match>>>
@@ -363,7 +376,7 @@ Tracker::refineByReprojection(const Frame& frame, const std::vector<LocalPoint>&
   features::ProjectionMatchOptions tight = options_.projection;
   tight.radius_px = options_.refine_radius_px;
   std::vector<features::Match> matches =
-      matchLocalPoints(frame, points, pose.T_w_b, tight, false, false);
+      matchLocalPoints(frame, points, pose.T_w_b, tight, false, nullptr);
   if (static_cast<int>(matches.size()) <= inliers) return std::nullopt;
   optim::PoseOptimizationResult refined = pose_optimizer_.optimize(
       pose.T_w_b, cameras_, poseObservations(frame, points, matches), rotationPrior(prediction));
@@ -524,7 +537,8 @@ std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
 
 std::vector<features::Match> Tracker::matchLocalPoints(
     const Frame& frame, const std::vector<LocalPoint>& points, const SE3d& T_w_b,
-    const features::ProjectionMatchOptions& options, bool allow_wide, bool count_visible) {
+    const features::ProjectionMatchOptions& options, bool allow_wide,
+    std::vector<map::MapPointId>* visible_ids) {
   features::FeatureSet query;
   // Keep only the points that project into the image; remember their index in `points`.
   std::vector<int> visible;
@@ -540,7 +554,7 @@ std::vector<features::Match> Tracker::matchLocalPoints(
     cv::Mat descriptor;
     map_->readMapPoint(points[k].id, [&](const map::MapPoint& p) { descriptor = p.descriptor; });
     if (descriptor.empty()) continue;
-    if (count_visible) map_->increaseVisible(points[k].id);
+    if (visible_ids) visible_ids->push_back(points[k].id);
     visible.push_back(static_cast<int>(k));
     predicted.push_back(*pixel);
     query.keypoints.push_back(queryKeypoint(points[k].id));

@@ -221,29 +221,36 @@ class Tracker {
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
   std::unique_ptr<map::Map> newMap() const;
   void startMap(const Frame& frame, const SE3d& T_w_b);
+  /// A local-map search: the map point tracked by each keypoint of the frame (kNoMapPoint where
+  /// none, all of them when tracking failed) and the points projected into the image.
+  struct LocalMapTrack {
+    std::vector<map::MapPointId> tracked;
+    std::vector<map::MapPointId> visible;
+  };
   /// Tracks the local map from the prediction, or from the reference keyframe's PnP pose when the
-  /// motion is unknown or the prediction fails (reference_matching.h).
+  /// motion is unknown or the prediction fails (reference_matching.h). The accepted search's
+  /// points count as visible, and its tracked ones as found (map::MapPoint's culling ratio).
   std::vector<map::MapPointId> trackFrame(const Frame& frame, const Prediction& prediction,
                                           TrackingResult& result);
+  std::vector<map::MapPointId> countObservations(LocalMapTrack track, bool found);
   /// The local-map search from the reference keyframe's PnP pose; nullopt (result untouched) when
   /// no pose is found or it has too few inliers.
-  std::optional<std::vector<map::MapPointId>> trackFromReference(const Frame& frame,
-                                                                 TrackingResult& result,
-                                                                 bool count_visible);
+  std::optional<LocalMapTrack> trackFromReference(const Frame& frame, TrackingResult& result);
   ReferenceView referenceView() const;
-  std::vector<map::MapPointId> trackLocalMap(const Frame& frame, const Prediction& prediction,
-                                             TrackingResult& result, bool count_visible);
+  LocalMapTrack trackLocalMap(const Frame& frame, const Prediction& prediction,
+                              TrackingResult& result);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                          const Prediction& prediction, TrackingResult& result);
   std::vector<LocalPoint> localPoints() const;
   /// Matches the points projected from T_w_b within options.radius_px (retried at
-  /// wide_radius_px when too few, if `allow_wide`); `count_visible` counts the projected points
-  /// as seen (once per frame).
+  /// wide_radius_px when too few, if `allow_wide`); the ids of the points that project into the
+  /// image are appended to `visible_ids` when given.
   std::vector<features::Match> matchLocalPoints(const Frame& frame,
                                                 const std::vector<LocalPoint>& points,
                                                 const SE3d& T_w_b,
                                                 const features::ProjectionMatchOptions& options,
-                                                bool allow_wide, bool count_visible);
+                                                bool allow_wide,
+                                                std::vector<map::MapPointId>* visible_ids);
   /// The pose and inliers of the refine_radius_px search from `pose` (see TrackerOptions), or
   /// nullopt when it finds fewer inliers than `pose` has.
   std::optional<std::pair<optim::PoseOptimizationResult, std::vector<features::Match>>>
