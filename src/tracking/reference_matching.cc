@@ -48,17 +48,17 @@ SE3d bodyPoseFromPnp(const cv::Mat& rvec, const cv::Mat& tvec, const SE3d& T_b_c
 void ReferenceMatchingOptions::validate() const {
   matching.validate();
   if (!(ransac_threshold_px > 0.0)) {
-    throw OptionError("tracker.reference_matching.ransac_threshold_px", "must be > 0");
+    throw OptionError("tracker.reference_ransac_threshold_px", "must be > 0");
   }
   if (ransac_iterations <= 0) {
-    throw OptionError("tracker.reference_matching.ransac_iterations", "must be > 0");
+    throw OptionError("tracker.reference_ransac_iterations", "must be > 0");
   }
-  if (min_inliers < 3) throw OptionError("tracker.reference_matching.min_inliers", "must be >= 3");
+  if (min_inliers < 3) throw OptionError("tracker.reference_min_inliers", "must be >= 3");
   if (!(search_radius_px > 0.0)) {
-    throw OptionError("tracker.reference_matching.search_radius_px", "must be > 0");
+    throw OptionError("tracker.reference_search_radius_px", "must be > 0");
   }
   if (!(ransac_confidence > 0.0 && ransac_confidence < 1.0)) {
-    throw OptionError("tracker.reference_matching.ransac_confidence", "must be in (0, 1)");
+    throw OptionError("tracker.reference_ransac_confidence", "must be in (0, 1)");
   }
 }
 

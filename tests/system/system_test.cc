@@ -169,6 +169,18 @@ TEST(OptionsFile, SetsKnownKeysAndRejectsUnknownOnes) {
   test::writeFile(dir / "bad_value.yaml", "mapping:\n  window_keyframes: 1\n");
   test::expectError([&] { loadSystemOptions(dir / "bad_value.yaml"); },
                     {"bad_value.yaml", "window_keyframes"});
+
+  test::writeFile(dir / "reference.yaml",
+                  "tracker:\n  reference_matching: false\n  reference_min_inliers: 40\n"
+                  "  reference_search_radius_px: 4\n  reference_ratio: 0.7\n");
+  const SystemOptions reference = loadSystemOptions(dir / "reference.yaml");
+  EXPECT_FALSE(reference.tracker.reference_matching.enabled);
+  EXPECT_EQ(reference.tracker.reference_matching.min_inliers, 40);
+  EXPECT_EQ(reference.tracker.reference_matching.search_radius_px, 4.0);
+  EXPECT_EQ(reference.tracker.reference_matching.matching.ratio, 0.7);
+  test::writeFile(dir / "bad_reference.yaml", "tracker:\n  reference_min_inliers: 2\n");
+  test::expectError([&] { loadSystemOptions(dir / "bad_reference.yaml"); },
+                    {"bad_reference.yaml", "tracker.reference_min_inliers"});
 }
 
 TEST(OptionsFile, ReadsTheFeaturesSection) {

@@ -468,7 +468,7 @@ TEST(ReferenceMatching, PoseFromDescriptorsAloneDespiteOutliers) {
   EXPECT_FALSE(poseFromReference(frame, view, rig.T_b_c0(), rig.fx, options).has_value());
   options.ransac_threshold_px = 0.0;
   test::expectError<OptionError>([&] { options.validate(); },
-                                 {"tracker.reference_matching.ransac_threshold_px"});
+                                 {"tracker.reference_ransac_threshold_px"});
 }
 
 }  // namespace

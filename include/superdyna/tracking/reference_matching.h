@@ -33,6 +33,9 @@ inline features::BruteForceMatchOptions defaultReferenceMatching() {
   return options;
 }
 
+/// YAML: the `tracker` section's reference_* keys (reference_matching, reference_max_distance,
+/// reference_max_l2_distance, reference_ratio, reference_ransac_threshold_px,
+/// reference_search_radius_px, reference_min_inliers).
 struct ReferenceMatchingOptions {
   /// Use it for frames whose motion is unknown and as a retry before a frame is declared lost.
   bool enabled = true;
@@ -47,8 +50,9 @@ struct ReferenceMatchingOptions {
   /// step; after a 15 px search 2.7 cm, after a 5 px search 8.6 cm).
   double search_radius_px = 5.0;
   /// Support a reference pose needs: PnP inliers, and pose inliers of the local-map search from it,
-  /// >= 3 (ORB-SLAM accepts a relocalisation with 50). Fewer than for ordinary tracking: a wrong
-  /// PnP pose that a few look-alike matches confirm is worse than a lost frame.
+  /// >= 3 (ORB-SLAM accepts a relocalisation with 50). More than ordinary tracking needs
+  /// (tracker.min_inliers): a wrong PnP pose that a few look-alike matches confirm is worse than a
+  /// lost frame (with 15, dim and blurred XFeat runs went on with poses metres off).
   int min_inliers = 50;
 
   void validate() const;
