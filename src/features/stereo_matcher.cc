@@ -70,6 +70,55 @@ struct RightBearing {
   bool valid = false;
 };
 
+/// The valid right bearings sorted by normalised y, to visit only those near an epipolar line
+/// instead of all (the search was quadratic in the keypoint count).
+class BearingsByRow {
+ public:
+  explicit BearingsByRow(const std::vector<RightBearing>& bearings) {
+    for (std::size_t j = 0; j < bearings.size(); ++j) {
+      if (!bearings[j].valid) continue;
+      rows_.emplace_back(bearings[j].x.y(), static_cast<int>(j));
+      x_min_ = std::min(x_min_, bearings[j].x.x());
+      x_max_ = std::max(x_max_, bearings[j].x.x());
+    }
+    std::sort(rows_.begin(), rows_.end());
+  }
+
+  /// Indices (ascending) of a superset of the bearings x with |line . x| <= max_residual: those
+  /// whose y lies in the band's y range over the bearings' x range.
+  std::vector<int> near(const Eigen::Vector3d& line, double max_residual) const {
+    std::vector<int> out;
+    const double a = line.x(), b = line.y(), c = line.z();
+    if (std::abs(b) < 1e-9) {  // a vertical line: no y bound
+      for (const auto& row : rows_)
+        out.push_back(row.second);
+    } else {
+      // y = (-c - a x +- r) / b, extreme at the ends of the x range; widened against rounding.
+      const double margin = 1e-9 + 1e-9 * std::abs(c);
+      double y_lo = std::numeric_limits<double>::infinity();
+      double y_hi = -y_lo;
+      for (const double x : {x_min_, x_max_}) {
+        for (const double r : {-max_residual, max_residual}) {
+          const double y = (-c - a * x + r) / b;
+          y_lo = std::min(y_lo, y);
+          y_hi = std::max(y_hi, y);
+        }
+      }
+      const auto first =
+          std::lower_bound(rows_.begin(), rows_.end(), std::make_pair(y_lo - margin, -1));
+      for (auto it = first; it != rows_.end() && it->first <= y_hi + margin; ++it)
+        out.push_back(it->second);
+    }
+    std::sort(out.begin(), out.end());  // the order of the full scan: same ties, same matches
+    return out;
+  }
+
+ private:
+  std::vector<std::pair<double, int>> rows_;
+  double x_min_ = std::numeric_limits<double>::infinity();
+  double x_max_ = -std::numeric_limits<double>::infinity();
+};
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------
@@ -136,6 +185,7 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
     if (!f || !(f->z() > 0.0)) continue;
     bearings[j] = {*f, *f / f->z(), true};
   }
+  const BearingsByRow rows(bearings);
   std::vector<StereoMatch> matches;
   for (std::size_t i = 0; i < left.size(); ++i) {
     const auto f0 = camera0_.unproject(left.keypoints[i].pixel);
@@ -148,7 +198,8 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
     const int class_id = left.keypoints[i].class_id;
     double best = kNoDistance, second = kNoDistance;
     StereoMatch candidate;
-    for (std::size_t j = 0; j < right.size(); ++j) {
+    for (const int right_index : rows.near(line, max_residual)) {
+      const auto j = static_cast<std::size_t>(right_index);
       const RightBearing& rb = bearings[j];
       const Keypoint& candidate_kp = right.keypoints[j];
       if (!rb.valid || std::abs(candidate_kp.octave - octave) > options_.max_octave_difference ||

@@ -85,6 +85,55 @@ TEST(StereoMatcherTest, EpipolarErrorAndTriangulationAreExactForTrueBearings) {
   EXPECT_FALSE(matcher.triangulate(Eigen::Vector3d::UnitZ(), T_c1_c0.q * Eigen::Vector3d::UnitZ()));
 }
 
+/// Matches of exact projections of `count` random points (3-8 m ahead, random unit float
+/// descriptors, one keypoint per point in each image) on the rig with cam1 at T_c0_c1 (no lens
+/// distortion); returns how many pair keypoint k with keypoint k.
+int exactMatchesOnRig(const SE3d& T_c0_c1, int count) {
+  auto [cam0, cam1] = idealRig();
+  cam0.distortion_model = cam1.distortion_model = DistortionModel::kNone;
+  cam0.distortion = cam1.distortion = {};
+  cam1.cx = cam0.cx;
+  cam1.T_b_c = cam0.T_b_c * T_c0_c1;
+  const StereoMatcher matcher(cam0, cam1);
+  const CameraModel model0 = cam0.cameraModel(), model1 = cam1.cameraModel();
+  cv::RNG rng(5);
+  FeatureSet left, right;
+  left.descriptor_type = right.descriptor_type = DescriptorType::kFloat;
+  left.image_size = right.image_size = {cam0.width, cam0.height};
+  std::vector<cv::Mat> rows;
+  while (static_cast<int>(left.size()) < count) {
+    const Eigen::Vector3d p(rng.uniform(-3.0, 3.0), rng.uniform(-2.0, 2.0), rng.uniform(3.0, 8.0));
+    const auto pixel0 = model0.project(p);
+    const auto pixel1 = model1.project(T_c0_c1.inverse() * p);
+    if (!pixel0 || !pixel1 || !model0.isInImage(*pixel0) || !model1.isInImage(*pixel1)) continue;
+    Keypoint k0, k1;
+    k0.pixel = *pixel0;
+    k1.pixel = *pixel1;
+    left.keypoints.push_back(k0);
+    right.keypoints.push_back(k1);
+    cv::Mat descriptor(1, 32, CV_32FC1);
+    rng.fill(descriptor, cv::RNG::NORMAL, 0.0, 1.0);
+    rows.push_back(descriptor / cv::norm(descriptor));
+  }
+  cv::vconcat(rows, left.descriptors);
+  right.descriptors = left.descriptors.clone();
+  int correct = 0;
+  for (const StereoMatch& m : matcher.match(left, right))
+    correct += m.left == m.right ? 1 : 0;
+  return correct;
+}
+
+TEST(StereoMatcherTest, FindsEveryExactMatchWhateverTheEpipolarLinesDirection) {
+  // The search visits only right keypoints whose rows can lie on the epipolar line; lines tilted
+  // by a rolled camera or vertical for a vertical baseline must still reach every match.
+  const Eigen::Vector3d side(0.11, 0.0, 0.0), below(0.0, 0.11, 0.0);
+  EXPECT_EQ(exactMatchesOnRig(SE3d(Eigen::Quaterniond::Identity(), side), 300), 300);
+  EXPECT_EQ(exactMatchesOnRig(SE3d(expSO3(Eigen::Vector3d(0.0, 0.0, 0.5)), side), 300), 300);
+  EXPECT_EQ(exactMatchesOnRig(SE3d(Eigen::Quaterniond::Identity(), below), 300), 300);
+  EXPECT_EQ(exactMatchesOnRig(SE3d(expSO3(Eigen::Vector3d(0.1, -0.2, 0.3)), side + below), 300),
+            300);
+}
+
 TEST(StereoMatcherTest, RejectsInvalidOptionsAndRigs) {
   auto [cam0, cam1] = idealRig();
   StereoMatchOptions options;
