@@ -15,6 +15,18 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+/// The feature-side view of a keyframe's keypoint (position, orientation, octave, class) for
+/// matching against a frame's keypoints.
+features::Keypoint asFeatureKeypoint(const map::KeyFrameKeypoint& k) {
+  features::Keypoint keypoint;
+  keypoint.pixel = k.pixel;
+  keypoint.angle = k.angle;
+  keypoint.octave = k.octave;
+  keypoint.class_id = k.class_id;
+  keypoint.instance_id = k.instance_id;
+  return keypoint;
+}
+
 features::ProjectionMatchOptions withRadius(features::ProjectionMatchOptions options,
                                             double radius_px) {
   options.radius_px = radius_px;
@@ -295,14 +307,7 @@ ReferenceView Tracker::referenceView() const {
     if (kf.descriptors.type() == CV_32FC1) type = features::DescriptorType::kFloat;
     for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
       if (kf.map_points[i] == map::kNoMapPoint) continue;
-      const map::KeyFrameKeypoint& k = kf.keypoints[i];
-      features::Keypoint keypoint;
-      keypoint.pixel = k.pixel;
-      keypoint.angle = k.angle;
-      keypoint.octave = k.octave;
-      keypoint.class_id = k.class_id;
-      keypoint.instance_id = k.instance_id;
-      observed.emplace_back(kf.map_points[i], keypoint);
+      observed.emplace_back(kf.map_points[i], asFeatureKeypoint(kf.keypoints[i]));
       rows.push_back(kf.descriptors.row(static_cast<int>(i)).clone());
     }
   });
@@ -326,13 +331,13 @@ Tracker::LocalMapTrack Tracker::trackLocalMap(const Frame& frame, const Predicti
   track.tracked.assign(frame.size(), map::kNoMapPoint);
   std::vector<map::MapPointId>& tracked = track.tracked;
   const std::vector<LocalPoint> points = localPoints();
+  // A pose known to a few pixels is searched at its own radius, without the wide retry.
+  const bool known_pose = prediction.search_radius_px.has_value();
   std::vector<features::Match> matches =
-      prediction.search_radius_px
-          ? matchLocalPoints(frame, points, prediction.T_w_b,
-                             withRadius(options_.projection, *prediction.search_radius_px), false,
-                             &track.visible)
-          : matchLocalPoints(frame, points, prediction.T_w_b, options_.projection, true,
-                             &track.visible);
+      matchLocalPoints(frame, points, prediction.T_w_b,
+                       known_pose ? withRadius(options_.projection, *prediction.search_radius_px)
+                                  : options_.projection,
+                       !known_pose, &track.visible);
   result.matches = static_cast<int>(matches.size());
   for (const features::Match& m : matches) {
     int point_class = features::kClassBackground;
@@ -373,10 +378,9 @@ std::optional<std::pair<optim::PoseOptimizationResult, std::vector<features::Mat
 Tracker::refineByReprojection(const Frame& frame, const std::vector<LocalPoint>& points,
                               const Prediction& prediction,
                               const optim::PoseOptimizationResult& pose, int inliers) {
-  features::ProjectionMatchOptions tight = options_.projection;
-  tight.radius_px = options_.refine_radius_px;
   std::vector<features::Match> matches =
-      matchLocalPoints(frame, points, pose.T_w_b, tight, false, nullptr);
+      matchLocalPoints(frame, points, pose.T_w_b,
+                       withRadius(options_.projection, options_.refine_radius_px), false, nullptr);
   if (static_cast<int>(matches.size()) <= inliers) return std::nullopt;
   optim::PoseOptimizationResult refined = pose_optimizer_.optimize(
       pose.T_w_b, cameras_, poseObservations(frame, points, matches), rotationPrior(prediction));
@@ -589,12 +593,7 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
   features::Keypoint keypoint;
   if (!observation) return keypoint;
   map_->readKeyFrame(observation->first, [&](const map::KeyFrame& kf) {
-    const map::KeyFrameKeypoint& k = kf.keypoints[static_cast<std::size_t>(observation->second)];
-    keypoint.pixel = k.pixel;
-    keypoint.angle = k.angle;
-    keypoint.octave = k.octave;
-    keypoint.class_id = k.class_id;
-    keypoint.instance_id = k.instance_id;
+    keypoint = asFeatureKeypoint(kf.keypoints[static_cast<std::size_t>(observation->second)]);
   });
   return keypoint;
 }

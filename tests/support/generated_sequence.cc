@@ -34,4 +34,14 @@ const std::filesystem::path& generatedSequence(const std::string& name,
   return found->second.sequence;
 }
 
+sim::SimulationOptions flightOptions(double duration_s, sim::SceneType scene,
+                                     sim::DynamicLevel dynamic, std::uint64_t seed) {
+  sim::SimulationOptions options;
+  options.motion.duration_s = duration_s;
+  options.world.scene = scene;
+  options.world.dynamic = dynamic;
+  options.seed = seed;
+  return options;
+}
+
 }  // namespace superdyna::test

@@ -2,6 +2,7 @@
 // Synthetic sequences shared by the tests of one test process: generated on first use into a
 // scratch folder, reused by every later test, removed when the process ends.
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -14,5 +15,10 @@ namespace superdyna::test {
 /// folder; later calls with the same name return it without generating again.
 const std::filesystem::path& generatedSequence(const std::string& name,
                                                sim::SimulationOptions options);
+
+/// Options of a procedural flight of `duration_s` through `scene` with `dynamic` agents (the
+/// simulator's defaults otherwise), for generatedSequence().
+sim::SimulationOptions flightOptions(double duration_s, sim::SceneType scene,
+                                     sim::DynamicLevel dynamic, std::uint64_t seed);
 
 }  // namespace superdyna::test

@@ -97,34 +97,25 @@ eval::EvaluationResult ateOf(const RunSummary& run,
 
 /// An 8 s street flight with image and IMU noise, generated once for all tests here.
 const fs::path& syntheticSequence() {
-  sim::SimulationOptions options;
-  options.motion.duration_s = 8.0;
-  options.world.scene = sim::SceneType::kStreet;
-  options.world.dynamic = sim::DynamicLevel::kNone;
-  options.seed = 7;
-  return test::generatedSequence("system_test_street", options);
+  return test::generatedSequence(
+      "system_test_street",
+      test::flightOptions(8.0, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 7));
 }
 
 /// A 3 s street flight among moving vehicles and pedestrians, with instance masks.
 const fs::path& dynamicSequence() {
-  sim::SimulationOptions options;
-  options.motion.duration_s = 3.0;
-  options.world.scene = sim::SceneType::kStreet;
-  options.world.dynamic = sim::DynamicLevel::kMid;
+  sim::SimulationOptions options =
+      test::flightOptions(3.0, sim::SceneType::kStreet, sim::DynamicLevel::kMid, 2);
   options.landmark_count = 0;
-  options.seed = 2;
   return test::generatedSequence("system_test_dynamic", options);
 }
 
 /// A 2 s indoor flight (static scene): the learned-feature runs are slow, so they get a short
 /// sequence of their own.
 const fs::path& indoorSequence() {
-  sim::SimulationOptions options;
-  options.motion.duration_s = 2.0;
-  options.world.scene = sim::SceneType::kIndoor;
-  options.world.dynamic = sim::DynamicLevel::kNone;
+  sim::SimulationOptions options =
+      test::flightOptions(2.0, sim::SceneType::kIndoor, sim::DynamicLevel::kNone, 3);
   options.landmark_count = 0;
-  options.seed = 3;
   return test::generatedSequence("system_test_indoor", options);
 }
 
@@ -358,12 +349,9 @@ TEST(StereoInertialSlam, BridgesAShortTrackingFailureWithTheImu) {
 
 /// A 3 s street flight (60 frames), cheaper to generate for the tests that need few frames.
 const fs::path& shortSequence() {
-  sim::SimulationOptions options;
-  options.motion.duration_s = 3.0;
-  options.world.scene = sim::SceneType::kStreet;
-  options.world.dynamic = sim::DynamicLevel::kNone;
-  options.seed = 7;
-  return test::generatedSequence("system_test_short", options);
+  return test::generatedSequence(
+      "system_test_short",
+      test::flightOptions(3.0, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 7));
 }
 
 std::unique_ptr<io::DatasetSource> openSynthetic(std::size_t max_frames = 0,

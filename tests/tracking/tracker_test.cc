@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <deque>
 #include <functional>
+#include <memory>
 #include <random>
 #include <utility>
 #include <vector>
@@ -75,12 +76,17 @@ class ManualMappingSink final : public MappingSink {
 
 /// A 3 s street flight, generated once for the monocular tests here.
 const std::filesystem::path& monoSequence() {
-  sim::SimulationOptions options;
-  options.motion.duration_s = 3.0;
-  options.world.scene = sim::SceneType::kStreet;
-  options.world.dynamic = sim::DynamicLevel::kNone;
-  options.seed = 7;
-  return test::generatedSequence("tracker_test_street", options);
+  return test::generatedSequence(
+      "tracker_test_street",
+      test::flightOptions(3.0, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 7));
+}
+
+/// monoSequence() as a monocular source, with its IMU when `inertial`.
+std::unique_ptr<io::DatasetSource> openMonoSequence(bool inertial) {
+  io::DatasetSourceOptions source_options;
+  source_options.stereo = false;
+  source_options.inertial = inertial;
+  return io::openDataset(io::DatasetKind::kEuroc, monoSequence(), source_options);
 }
 
 struct MonoKeyFrame {
@@ -98,10 +104,7 @@ struct MonoRun {
 
 /// Tracks monoSequence() with a monocular tracker (mapping jobs to `sink`, if any).
 MonoRun trackMono(const TrackerOptions& options, ManualMappingSink* sink) {
-  io::DatasetSourceOptions source_options;
-  source_options.stereo = false;
-  source_options.inertial = false;
-  const auto source = io::openDataset(io::DatasetKind::kEuroc, monoSequence(), source_options);
+  const auto source = openMonoSequence(false);
   FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
   mapping::LocalMapperOptions mapping;
   mapping.triangulate = true;
@@ -174,10 +177,7 @@ struct MonoInertialKeyFrames {
 };
 
 MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
-  io::DatasetSourceOptions source_options;
-  source_options.stereo = false;
-  source_options.inertial = true;
-  const auto source = io::openDataset(io::DatasetKind::kEuroc, monoSequence(), source_options);
+  const auto source = openMonoSequence(true);
   FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
   mapping::LocalMapperOptions mapping;
   mapping.triangulate = true;
