@@ -74,19 +74,19 @@ class Problem {
   BundleAdjustmentResult run() {
     BundleAdjustmentResult result;
     loadKeyFrames();
+    if (optimisedCount() == 0) return result;
+    const std::set<map::MapPointId> local = optimisedPoints();
+    loadFixedObservers(local);
+    holdOldestForGauge();
     if (blocks_.size() < 2 || optimisedCount() == 0) return result;
-    loadPoints();
+    loadPoints(local);
     addReprojections(collectReprojections());
     result.observations = static_cast<int>(observations_.size());
     if (observations_.empty()) {
       result.outliers = removeInvalidAtStart();
       return result;
     }
-    for (auto& [id, blocks] : blocks_) {
-      if (!problem_->HasParameterBlock(blocks.state.pose.data())) continue;
-      problem_->SetManifold(blocks.state.pose.data(), new optim::SE3Manifold());
-      if (blocks.fixed) problem_->SetParameterBlockConstant(blocks.state.pose.data());
-    }
+    setPoseManifolds();
     if (window_.inertial) result.imu_edges = addInertialFactors();
     if (!solve()) {
       result.outliers = removeInvalidAtStart();  // the state is left as it was
@@ -103,27 +103,85 @@ class Problem {
                                           [](const auto& b) { return !b.second.fixed; }));
   }
 
+  void setPoseManifolds() {
+    for (auto& [id, blocks] : blocks_) {
+      double* pose = blocks.state.pose.data();
+      if (!problem_->HasParameterBlock(pose)) continue;
+      const bool gauge = id == window_.gauge && !blocks.fixed;
+      if (gauge && window_.inertial) {
+        problem_->SetManifold(pose, new optim::RollPitchPoseManifold());
+        continue;
+      }
+      problem_->SetManifold(pose, new optim::SE3Manifold());
+      if (blocks.fixed || gauge) problem_->SetParameterBlockConstant(pose);
+    }
+  }
+
+  void loadKeyFrame(map::KeyFrameId id, bool fixed) {
+    if (blocks_.contains(id)) return;
+    map_.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      keyframes_.emplace(id, kf);
+      KeyFrameBlocks blocks;
+      const SE3d pose = window_.inertial ? kf.T_w_b * imu_->T_b_i : kf.T_w_b;
+      blocks.state.pose = optim::toPoseBlock(pose);
+      std::copy(kf.v_w.data(), kf.v_w.data() + 3, blocks.state.velocity.begin());
+      std::copy(kf.bg.data(), kf.bg.data() + 3, blocks.state.bias_gyro.begin());
+      std::copy(kf.ba.data(), kf.ba.data() + 3, blocks.state.bias_acc.begin());
+      blocks.fixed = fixed;
+      blocks.previous = kf.previous;
+      blocks.t_ns = kf.t_ns;
+      blocks_.emplace(id, blocks);
+    });
+  }
+
   void loadKeyFrames() {
-    const auto load = [&](map::KeyFrameId id, bool fixed) {
-      if (blocks_.contains(id)) return;
-      map_.readKeyFrame(id, [&](const map::KeyFrame& kf) {
-        keyframes_.emplace(id, kf);
-        KeyFrameBlocks blocks;
-        const SE3d pose = window_.inertial ? kf.T_w_b * imu_->T_b_i : kf.T_w_b;
-        blocks.state.pose = optim::toPoseBlock(pose);
-        std::copy(kf.v_w.data(), kf.v_w.data() + 3, blocks.state.velocity.begin());
-        std::copy(kf.bg.data(), kf.bg.data() + 3, blocks.state.bias_gyro.begin());
-        std::copy(kf.ba.data(), kf.ba.data() + 3, blocks.state.bias_acc.begin());
-        blocks.fixed = fixed;
-        blocks.previous = kf.previous;
-        blocks.t_ns = kf.t_ns;
-        blocks_.emplace(id, blocks);
-      });
-    };
     for (const map::KeyFrameId id : window_.optimised)
-      load(id, false);
+      loadKeyFrame(id, false);
     for (const map::KeyFrameId id : window_.fixed)
-      load(id, true);
+      loadKeyFrame(id, true);
+  }
+
+  /// The map points observed by the optimised keyframes.
+  std::set<map::MapPointId> optimisedPoints() const {
+    std::set<map::MapPointId> points;
+    for (const auto& [id, kf] : keyframes_) {
+      if (blocks_.at(id).fixed) continue;
+      for (const map::MapPointId p : kf.map_points)
+        if (p != map::kNoMapPoint) points.insert(p);
+    }
+    return points;
+  }
+
+  /// Keyframes outside the problem observing its points join it as fixed keyframes, those sharing
+  /// most points first, up to window.fixed_observers.
+  void loadFixedObservers(const std::set<map::MapPointId>& local) {
+    if (window_.fixed_observers <= 0) return;
+    std::map<map::KeyFrameId, int> shared;
+    for (const map::MapPointId p : local) {
+      map_.readMapPoint(p, [&](const map::MapPoint& point) {
+        for (const auto& [observer, index] : point.observations)
+          if (!blocks_.contains(observer)) ++shared[observer];
+      });
+    }
+    std::vector<std::pair<int, map::KeyFrameId>> ranked;
+    for (const auto& [id, count] : shared)
+      ranked.emplace_back(-count, id);
+    std::sort(ranked.begin(), ranked.end());
+    const std::size_t n =
+        std::min(ranked.size(), static_cast<std::size_t>(window_.fixed_observers));
+    for (std::size_t k = 0; k < n; ++k)
+      loadKeyFrame(ranked[k].second, true);
+  }
+
+  /// Holds the oldest optimised keyframes until window.min_fixed keyframes are fixed.
+  void holdOldestForGauge() {
+    int fixed = static_cast<int>(blocks_.size()) - optimisedCount();
+    for (auto& [id, blocks] : blocks_) {
+      if (fixed >= window_.min_fixed) return;
+      if (blocks.fixed) continue;
+      blocks.fixed = true;
+      ++fixed;
+    }
   }
 
   const RightObservations* rightOf(map::KeyFrameId id) const {
@@ -135,12 +193,13 @@ class Problem {
     return right != nullptr && i < right->size() && (*right)[i].has_value();
   }
 
-  void loadPoints() {
+  /// The local points (those of the optimised keyframes) with two or more residuals.
+  void loadPoints(const std::set<map::MapPointId>& local) {
     std::map<map::MapPointId, int> counts;  // residuals per point
     for (const auto& [id, kf] : keyframes_) {
       const RightObservations* right = rightOf(id);
       for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
-        if (kf.map_points[i] == map::kNoMapPoint) continue;
+        if (kf.map_points[i] == map::kNoMapPoint || !local.contains(kf.map_points[i])) continue;
         counts[kf.map_points[i]] += hasRight(right, i) ? 2 : 1;
       }
     }
@@ -240,7 +299,7 @@ class Problem {
       if (blocks.fixed) continue;
       const optim::ImuStateBlocks state = blocks.state.blocks();
       if (!problem_->HasParameterBlock(state.bias_gyro)) continue;
-      optim::addBiasPrior(*problem_, state, blocks.state.bias(), window_.bias_prior_sigma_gyro,
+      optim::addBiasPrior(*problem_, state, imu::Bias{}, window_.bias_prior_sigma_gyro,
                           window_.bias_prior_sigma_acc);
       return;  // the oldest optimised keyframe only
     }
@@ -329,6 +388,18 @@ class Problem {
 };
 
 }  // namespace
+
+BundleAdjustmentWindow fullInertialWindow(const std::vector<map::KeyFrameId>& ids,
+                                          double bias_prior_sigma_gyro,
+                                          double bias_prior_sigma_acc) {
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  window.optimised = ids;
+  if (!ids.empty()) window.gauge = ids.front();
+  window.bias_prior_sigma_gyro = bias_prior_sigma_gyro;
+  window.bias_prior_sigma_acc = bias_prior_sigma_acc;
+  return window;
+}
 
 BundleAdjustmentResult bundleAdjust(map::Map& map, const BundleAdjustmentWindow& window,
                                     const std::vector<optim::ReprojectionCamera>& cameras,

@@ -12,6 +12,9 @@ namespace superdyna::mapping {
 
 void LocalMapperOptions::validate() const {
   if (window_keyframes < 2) throw OptionError("mapping.window_keyframes", "must be >= 2");
+  if (fixed_observer_keyframes < 0) {
+    throw OptionError("mapping.fixed_observer_keyframes", "must be >= 0");
+  }
   if (iterations < 1) throw OptionError("mapping.iterations", "must be >= 1");
   if (!(chi2_outlier > 0.0)) throw OptionError("mapping.chi2_outlier", "must be > 0");
   if (cull_after_keyframes < 1) throw OptionError("mapping.cull_after_keyframes", "must be >= 1");
@@ -107,10 +110,23 @@ BundleAdjustmentSettings LocalMapper::settings(int iterations) const {
 
 BundleAdjustmentResult LocalMapper::visualBundleAdjust(map::Map& map, map::KeyFrameId newest) {
   const std::vector<map::KeyFrameId> ids = localWindow(map, newest);
-  if (ids.size() < 2) return {};
+  if (ids.empty()) return {};
   BundleAdjustmentWindow window;
-  window.fixed = {ids.front()};  // the oldest: the gauge
-  window.optimised.assign(ids.begin() + 1, ids.end());
+  // As ORB-SLAM's local BA: the keyframes outside the window that observe its points hold the
+  // gauge with their observations (monocular maps: their scale too). A stereo window floats
+  // between them (the map's first keyframe stays where it is; without observers the oldest
+  // window keyframe is held). A monocular window also keeps its oldest keyframe held, as before:
+  // observers seen with little parallax pin its scale only weakly (letting the window float lost
+  // track on the 3 s street flight of tracker_test), and holding a second one froze every new
+  // map's second keyframe at its two-view estimate.
+  const bool monocular = cameras_.size() == 1;
+  const map::KeyFrameId first = map.keyFrameIds().front();
+  for (const map::KeyFrameId id : ids) {
+    const bool held = id == first || (monocular && id == ids.front());
+    (held ? window.fixed : window.optimised).push_back(id);
+  }
+  window.fixed_observers = options_.fixed_observer_keyframes;
+  window.min_fixed = 1;
   return bundleAdjust(map, window, cameras_, right_, settings(options_.iterations));
 }
 
@@ -142,11 +158,7 @@ BundleAdjustmentResult LocalMapper::inertialBundleAdjust(map::Map& map, map::Key
   // chain is shorter, its oldest keyframe (the first of the map) is.
   window.optimised.assign(chain.begin(), chain.end() - 1);
   window.fixed = {chain.back()};
-  for (const map::KeyFrameId id : map.bestCovisibleKeyFrames(
-           newest, options_.inertial_fixed_covisible + options_.inertial_window_keyframes)) {
-    if (static_cast<int>(window.fixed.size()) > options_.inertial_fixed_covisible) break;
-    if (std::ranges::find(chain, id) == chain.end()) window.fixed.push_back(id);
-  }
+  window.fixed_observers = options_.inertial_fixed_covisible;
   return bundleAdjust(map, window, cameras_, right_, settings(options_.inertial_iterations),
                       BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
 }
@@ -155,12 +167,7 @@ BundleAdjustmentResult LocalMapper::fullInertialBundleAdjust(map::Map& map, doub
                                                              double bias_sigma_acc) {
   const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
   if (ids.size() < 2) return {};
-  BundleAdjustmentWindow window;
-  window.inertial = true;
-  window.fixed = {ids.front()};
-  window.optimised.assign(ids.begin() + 1, ids.end());
-  window.bias_prior_sigma_gyro = bias_sigma_gyro;
-  window.bias_prior_sigma_acc = bias_sigma_acc;
+  const BundleAdjustmentWindow window = fullInertialWindow(ids, bias_sigma_gyro, bias_sigma_acc);
   return bundleAdjust(map, window, cameras_, right_, settings(options_.full_ba_iterations),
                       BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
 }

@@ -1,6 +1,7 @@
 #include "superdyna/optim/se3_manifold.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 
 namespace superdyna::optim {
 
@@ -33,6 +34,39 @@ Eigen::Matrix<double, 3, 4> rotationTangentFromQuaternion(const double* q_xyzw) 
   J.leftCols<3>() = w * Eigen::Matrix3d::Identity() + hat(v);
   J.col(3) = -v;
   return (2.0 / norm) * J;
+}
+
+bool RollPitchPoseManifold::Plus(const double* x, const double* delta, double* x_plus_delta) const {
+  const double dq[3] = {delta[0], delta[1], 0.0};
+  if (!ceres::EigenQuaternionManifold().Plus(x, dq, x_plus_delta)) return false;
+  std::copy(x + 4, x + 7, x_plus_delta + 4);
+  return true;
+}
+
+bool RollPitchPoseManifold::PlusJacobian(const double* x, double* jacobian) const {
+  Eigen::Matrix<double, 4, 3, Eigen::RowMajor> J_q;
+  if (!ceres::EigenQuaternionManifold().PlusJacobian(x, J_q.data())) return false;
+  Eigen::Map<Eigen::Matrix<double, kPoseBlockSize, 2, Eigen::RowMajor>> J(jacobian);
+  J.setZero();
+  J.topRows<4>() = J_q.leftCols<2>();
+  return true;
+}
+
+bool RollPitchPoseManifold::Minus(const double* y, const double* x, double* y_minus_x) const {
+  double dq[3];
+  if (!ceres::EigenQuaternionManifold().Minus(y, x, dq)) return false;
+  y_minus_x[0] = dq[0];
+  y_minus_x[1] = dq[1];
+  return true;
+}
+
+bool RollPitchPoseManifold::MinusJacobian(const double* x, double* jacobian) const {
+  Eigen::Matrix<double, 3, 4, Eigen::RowMajor> J_q;
+  if (!ceres::EigenQuaternionManifold().MinusJacobian(x, J_q.data())) return false;
+  Eigen::Map<Eigen::Matrix<double, 2, kPoseBlockSize, Eigen::RowMajor>> J(jacobian);
+  J.setZero();
+  J.leftCols<4>() = J_q.topRows<2>();
+  return true;
 }
 
 Eigen::Matrix<double, kPoseBlockSize, kPoseTangentSize> posePlusJacobian(const double* block) {

@@ -260,7 +260,9 @@ std::vector<map::MapPointId> Tracker::trackFrame(const Frame& frame, const Predi
   }
   LocalMapTrack track = trackLocalMap(frame, prediction, result);
   const bool tracked = result.inliers >= options_.min_inliers;
-  if (!tracked && !motion_unknown) {
+  // A weak search (fewer inliers than a reference pose needs) is often a wrong pose from a poor
+  // prediction: the reference keyframe's pose replaces it when it reaches that bar.
+  if (result.inliers < options_.reference_matching.min_inliers && !motion_unknown) {
     if (auto from_reference = trackFromReference(frame, result)) {
       return countObservations(std::move(*from_reference), true);
     }
@@ -467,7 +469,7 @@ std::vector<optim::PoseObservation> Tracker::poseObservations(
   std::vector<optim::PoseObservation> observations;
   const auto observe = [&](const features::Match& m, int camera, const Eigen::Vector2d& xy) {
     optim::PoseObservation o;
-    o.p_w = points[static_cast<std::size_t>(m.query)].p_w;
+    o.p_w = points[static_cast<std::size_t>(m.query)].point.p_w;
     o.normalized = xy;
     o.octave = frame.features.keypoints[static_cast<std::size_t>(m.train)].octave;
     o.camera = camera;
@@ -533,7 +535,13 @@ std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
   points.reserve(ids.size());
   for (const map::MapPointId id : ids) {
     map_->readMapPoint(id, [&](const map::MapPoint& p) {
-      if (!p.bad) points.push_back({id, p.p_w});
+      if (p.bad) return;
+      map::MapPoint geometry;
+      geometry.p_w = p.p_w;
+      geometry.normal_w = p.normal_w;
+      geometry.min_distance_m = p.min_distance_m;
+      geometry.max_distance_m = p.max_distance_m;
+      points.push_back({id, std::move(geometry)});
     });
   }
   return points;
@@ -550,15 +558,21 @@ std::vector<features::Match> Tracker::matchLocalPoints(
   query.descriptor_type = frame.features.descriptor_type;  // map points keep the frames' type
   query.image_size = frame.features.image_size;
   std::vector<cv::Mat> rows;
+  std::vector<bool> outside_limits;
+  const Eigen::Vector3d centre_w = (T_w_b * T_b_c0_).t;
   for (std::size_t k = 0; k < points.size(); ++k) {
-    const Eigen::Vector3d p_c = optim::worldToCamera(T_w_b, T_b_c0_, points[k].p_w);
+    const Eigen::Vector3d p_c = optim::worldToCamera(T_w_b, T_b_c0_, points[k].point.p_w);
     if (!(p_c.z() > 0.05)) continue;
     const auto pixel = camera0_.project(p_c);
     if (!pixel || !camera0_.isInImage(*pixel)) continue;
     cv::Mat descriptor;
     map_->readMapPoint(points[k].id, [&](const map::MapPoint& p) { descriptor = p.descriptor; });
     if (descriptor.empty()) continue;
-    if (visible_ids) visible_ids->push_back(points[k].id);
+    // Counted visible only from within its viewing limits (or when matched, below).
+    const bool within =
+        !options_.viewing_limits || map::withinViewingLimits(points[k].point, centre_w);
+    if (visible_ids && within) visible_ids->push_back(points[k].id);
+    outside_limits.push_back(!within);
     visible.push_back(static_cast<int>(k));
     predicted.push_back(*pixel);
     query.keypoints.push_back(queryKeypoint(points[k].id));
@@ -577,7 +591,9 @@ std::vector<features::Match> Tracker::matchLocalPoints(
   std::vector<features::Match> usable;  // undistortion may fail far out in the image
   for (features::Match m : matches) {
     if (!frame.normalized[static_cast<std::size_t>(m.train)].allFinite()) continue;
-    m.query = visible[static_cast<std::size_t>(m.query)];
+    const std::size_t k = static_cast<std::size_t>(m.query);
+    if (visible_ids && outside_limits[k]) visible_ids->push_back(points[visible[k]].id);
+    m.query = visible[k];
     usable.push_back(m);
   }
   return usable;

@@ -412,5 +412,38 @@ TEST(MapOptions, ASinglePyramidLevelAcceptsScaleOne) {
   EXPECT_THROW(Map{options}, OptionError);
 }
 
+TEST(ViewingLimits, AngleAndScaleRangeAsOrbSlam) {
+  MapPoint point;
+  point.p_w = Eigen::Vector3d(0.0, 0.0, 10.0);
+  point.normal_w = Eigen::Vector3d(0.0, 0.0, 1.0);  // seen from below
+  point.min_distance_m = 4.0;
+  point.max_distance_m = 12.0;
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 0.0)));
+  // 59 and 61 degrees off the mean viewing direction, 8 m away.
+  const auto at_angle = [&](double deg) {
+    const double a = deg * M_PI / 180.0;
+    return Eigen::Vector3d(point.p_w - 8.0 * Eigen::Vector3d(std::sin(a), 0.0, std::cos(a)));
+  };
+  EXPECT_TRUE(withinViewingLimits(point, at_angle(59.0)));
+  EXPECT_FALSE(withinViewingLimits(point, at_angle(61.0)));
+  // Distance range [0.8 * 4, 1.2 * 12] m along the normal.
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 10.0 - 3.3)));
+  EXPECT_FALSE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 10.0 - 3.1)));
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 10.0 - 14.3)));
+  EXPECT_FALSE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 10.0 - 14.5)));
+}
+
+TEST(ViewingLimits, SingleScalePointsAndPointsWithoutNormalAreNotBounded) {
+  MapPoint point;
+  point.p_w = Eigen::Vector3d(0.0, 0.0, 10.0);
+  point.normal_w = Eigen::Vector3d(0.0, 0.0, 1.0);
+  point.min_distance_m = point.max_distance_m = 10.0;  // one pyramid level
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, -20.0)));
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 9.0)));
+  point.normal_w.setZero();  // not computed yet
+  EXPECT_TRUE(withinViewingLimits(point, Eigen::Vector3d(0.0, 0.0, 20.0)));
+  EXPECT_FALSE(withinViewingLimits(point, point.p_w));  // at the camera centre
+}
+
 }  // namespace
 }  // namespace superdyna::map

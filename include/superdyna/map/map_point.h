@@ -51,4 +51,32 @@ struct MapPoint {
   int numObservations() const { return static_cast<int>(observations.size()); }
 };
 
+/// ORB-SLAM's view test beyond the image bounds: a camera may see the point only at a distance
+/// within [near_factor * min_distance_m, far_factor * max_distance_m] (its scale-invariance range)
+/// and from a direction within acos(min_cos_angle) of its mean viewing direction.
+struct ViewingLimits {
+  double min_cos_angle = 0.5;  ///< 60 degrees.
+  double near_factor = 0.8;
+  double far_factor = 1.2;
+};
+
+/// Whether a camera centred at centre_w passes the point's ViewingLimits. Limits the point does
+/// not have yet are not checked: the angle without a normal (normal_w zero), the distance without
+/// a range or with an empty one (single-scale extractors, min_distance_m == max_distance_m: their
+/// points match over moderate scale changes, nothing bounds them).
+inline bool withinViewingLimits(const MapPoint& point, const Eigen::Vector3d& centre_w,
+                                const ViewingLimits& limits = {}) {
+  const Eigen::Vector3d ray = point.p_w - centre_w;
+  const double distance = ray.norm();
+  if (!(distance > 0.0)) return false;
+  if (point.max_distance_m > point.min_distance_m &&
+      (distance < limits.near_factor * point.min_distance_m ||
+       distance > limits.far_factor * point.max_distance_m)) {
+    return false;
+  }
+  const double normal_norm = point.normal_w.norm();
+  return !(normal_norm > 0.0) ||
+         ray.dot(point.normal_w) >= limits.min_cos_angle * distance * normal_norm;
+}
+
 }  // namespace superdyna::map

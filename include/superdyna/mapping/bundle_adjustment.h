@@ -3,7 +3,8 @@
 // visual-inertial, shared by the local BA and the full BA after the inertial initialisation.
 //
 // Visual: reprojection factors (Huber, left camera and, unrectified, right camera) on the poses of
-// the optimised keyframes and the points; the fixed keyframes only add their observations.
+// the optimised keyframes and the points they observe; the fixed keyframes (given, or found as
+// observers of those points) only add their observations of them.
 // Visual-inertial (ORB-SLAM3 local inertial BA): every optimised keyframe also has velocity and
 // bias blocks; an ImuPreintegrationFactor and a BiasRandomWalkFactor join it to its temporal
 // predecessor when that is optimised or fixed (a fixed predecessor anchors the window with its
@@ -41,10 +42,23 @@ struct BundleAdjustmentSettings {
 struct BundleAdjustmentWindow {
   std::vector<map::KeyFrameId> optimised;  ///< Pose (and inertial state) free.
   std::vector<map::KeyFrameId> fixed;      ///< Held; observations and IMU anchor only.
+  /// An optimised keyframe whose pose carries the gauge (kNoKeyFrame = none): visual, its pose is
+  /// held; visual-inertial, only its yaw and position are (roll and pitch are observable through
+  /// gravity), and its velocity and biases stay free.
+  map::KeyFrameId gauge = map::kNoKeyFrame;
+  /// Up to this many keyframes outside `optimised` and `fixed` that observe the optimised
+  /// keyframes' points join as fixed keyframes with their observations of those points (ORB-SLAM's
+  /// local BA), most shared points first (ties: older first); 0 = none.
+  int fixed_observers = 0;
+  /// When fewer keyframes than this end up fixed (given and observers), the oldest optimised
+  /// keyframes are held too: 1 fixes the 6-DoF gauge of a metric (stereo) map; a monocular map
+  /// needs 2, since one fixed pose leaves the scale free.
+  int min_fixed = 0;
   /// Visual-inertial: needs `imu` in the context.
   bool inertial = false;
-  /// Visual-inertial: Gaussian prior (around the current values) on the biases of the oldest
-  /// optimised keyframe, [rad/s] and [m/s^2]; 0 = none.
+  /// Visual-inertial: zero-mean Gaussian prior on the biases of the oldest optimised keyframe,
+  /// [rad/s] and [m/s^2] (the prior of the inertial initialisation, so that a full BA after it
+  /// counts that information once); 0 = none.
   double bias_prior_sigma_gyro = 0.0;
   double bias_prior_sigma_acc = 0.0;
 };
@@ -60,6 +74,13 @@ struct BundleAdjustmentResult {
   int imu_edges = 0;     ///< Preintegration factors.
   int outliers = 0;      ///< Observations removed (chi^2 test or behind the camera at the start).
 };
+
+/// The full visual-inertial BA after an inertial (re-)initialisation: every keyframe of `ids`
+/// (oldest first) optimised, the gauge on the oldest (yaw and position held; its roll, pitch,
+/// velocity and biases estimated), and the initialisation's zero-mean bias prior [rad/s], [m/s^2].
+BundleAdjustmentWindow fullInertialWindow(const std::vector<map::KeyFrameId>& ids,
+                                          double bias_prior_sigma_gyro,
+                                          double bias_prior_sigma_acc);
 
 /// Runs the BA on the map. `cameras`: [0] left, [1] right (optional), in the body frame;
 /// `right`: right observations by keyframe (missing = none). Keyframes that are not in the map

@@ -2,8 +2,9 @@
 // Local mapping, run sequentially after each new keyframe.
 //
 // Visual (stereo or mono, or with IMU before the inertial initialisation): local bundle
-// adjustment with Ceres over the newest keyframe and its best covisible keyframes (the oldest of
-// the window fixed).
+// adjustment with Ceres over the newest keyframe and its best covisible keyframes; keyframes
+// outside the window that observe its points add their observations with fixed poses (the gauge,
+// as in ORB-SLAM; the map's first keyframe is held too).
 // With IMU: once the map holds enough keyframes over a long enough time, the inertial
 // initialisation (inertial_map_initializer.h) aligns the map with gravity and estimates velocities
 // and biases (monocular rigs: the map scale too), followed by a full visual-inertial BA; it is
@@ -11,8 +12,8 @@
 // refine_second_s old. From then on the local BA is visual-inertial (ORB-SLAM3): the newest
 // inertial_window_keyframes keyframes of the temporal chain are optimised (pose, velocity, biases)
 // with preintegration and bias random walk factors between consecutive ones; the keyframe before
-// them is fixed with its velocity and biases; up to inertial_fixed_covisible best covisible
-// keyframes outside the window add their observations with fixed poses. Then: removal of outlier
+// them is fixed with its velocity and biases; up to inertial_fixed_covisible keyframes outside the
+// window that observe its points add their observations with fixed poses. Then: removal of outlier
 // observations, culling of recent map points that too few keyframes observe, and culling of
 // redundant keyframes (keyframe_culling.h).
 
@@ -36,7 +37,12 @@
 namespace superdyna::mapping {
 
 struct LocalMapperOptions {
-  int window_keyframes = 8;                  ///< Keyframes optimised together (oldest fixed), >= 2.
+  /// Keyframes optimised together (the newest and its best covisible ones), >= 2.
+  int window_keyframes = 8;
+  /// Keyframes outside the window observing its points, held fixed with their observations
+  /// (most shared points first), >= 0. They carry the gauge; without any, the oldest window
+  /// keyframe is held instead.
+  int fixed_observer_keyframes = 20;
   int iterations = 10;                       ///< Levenberg-Marquardt iterations per local BA, >= 1.
   double chi2_outlier = optim::kChi2Mono95;  ///< Observations above are removed after BA.
   int cull_after_keyframes = 3;   ///< Age (in keyframes) at which new points are checked, >= 1.
@@ -57,8 +63,10 @@ struct LocalMapperOptions {
   double refine_second_s = 15.0;         ///< ... of the second, > refine_first_s (0 = none).
   int full_ba_iterations = 20;  ///< Iterations of the full VI BA after an initialisation, >= 1.
   int inertial_window_keyframes = 10;  ///< Temporal keyframes optimised by the VI local BA, >= 2.
-  int inertial_fixed_covisible = 5;    ///< Fixed covisible keyframes of the VI local BA, >= 0.
-  int inertial_iterations = 5;         ///< Iterations of the VI local BA, >= 1.
+  /// Keyframes outside the VI window observing its points, held fixed with their observations
+  /// (most shared points first), >= 0.
+  int inertial_fixed_covisible = 5;
+  int inertial_iterations = 5;  ///< Iterations of the VI local BA, >= 1.
   void validate() const;
 };
 

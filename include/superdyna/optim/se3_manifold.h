@@ -36,6 +36,21 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 using SE3Manifold =
     ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>>;
 
+/// A pose block of which only roll and pitch may change: the tangent is [dq_x, dq_y], the rotation
+/// updated as SE3Manifold's with dq = (dq_x, dq_y, 0) (left, world frame) and the position held.
+/// In a gravity-aligned visual-inertial problem yaw and position are unobservable (the 4-DoF
+/// gauge) while roll and pitch are observable through gravity: this fixes the gauge on one pose
+/// without freezing what the IMU measures.
+class RollPitchPoseManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return kPoseBlockSize; }
+  int TangentSize() const override { return 2; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override;
+  bool PlusJacobian(const double* x, double* jacobian) const override;
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override;
+  bool MinusJacobian(const double* x, double* jacobian) const override;
+};
+
 /// T_w_b as a pose block (the quaternion normalised).
 PoseBlock toPoseBlock(const SE3d& T_w_b);
 /// The pose stored in a pose block (the quaternion normalised).

@@ -100,6 +100,13 @@ struct TrackerOptions {
   /// projection search radius: 3 s turned one reset on a dim, blurred XFeat run into 61 lost frames
   /// and twice the ATE, so the default covers short dropouts (a few blurred frames) only.
   double imu_bridge_s = 0.5;
+  /// Local-map points count as visible to a frame (map::MapPoint::visible_count, the denominator of
+  /// culling's found ratio) only from within their viewing limits (map::withinViewingLimits:
+  /// ORB-SLAM's distance range and 60-degree viewing angle) or when matched, so that frames that
+  /// could not have matched a point do not count against it. All points in the image are still
+  /// searched: restricting the search itself (as ORB-SLAM does) lost track once on the 3 s
+  /// monocular street flight of tracker_test.
+  bool viewing_limits = true;
   /// Pose from the reference keyframe without a prediction (reference_matching.h): for frames whose
   /// motion is unknown and as a retry before a frame is declared lost.
   ReferenceMatchingOptions reference_matching;
@@ -190,7 +197,7 @@ class Tracker {
  private:
   struct LocalPoint {
     map::MapPointId id = map::kNoMapPoint;
-    Eigen::Vector3d p_w = Eigen::Vector3d::Zero();
+    map::MapPoint point;  ///< Position and viewing geometry only (no descriptor, observations).
   };
 
   struct Prediction {
