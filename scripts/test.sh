@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Quick start, step 2: install dependencies, build, run the whole test suite.
 # Tests that need ../shared (real data and models beside the checkout) skip with a message when it
-# is absent; point SUPERDYNA_SHARED_DIR elsewhere to use another copy.
+# is absent (fail with SUPERDYNA_REQUIRE_SHARED=1, as in CI); point SUPERDYNA_SHARED_DIR elsewhere to
+# use another copy.
 set -euo pipefail
 repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build_dir=${BUILD_DIR:-"$repo_dir/build"}

@@ -56,12 +56,12 @@ class SimulateCommand : public Command {
     const sim::SimulationSummary summary = sim::generateSequence(options_, progress);
     fmt::print(
         "wrote {} stereo frames, {} IMU samples, {} static and {} moving agents "
-        "({:.1f} moving in view on average, at most {:.0f}; agents cover {:.1f}% of the image), "
-        "{:.1f} m of path, in {:.1f} s\n  -> {}\n",
+        "({:.1f} moving in view on average, at most {:.0f}; agents cover {:.1f}% of the image, "
+        "surfaces {:.1f}%), {:.1f} m of path, in {:.1f} s\n  -> {}\n",
         summary.frames, summary.imu_samples, summary.static_agents, summary.moving_agents,
         summary.mean_moving_in_view, summary.max_moving_in_view,
-        100.0 * summary.mean_agent_coverage, summary.path_length_m, summary.seconds,
-        (options_.output_dir / "mav0").string());
+        100.0 * summary.mean_agent_coverage, 100.0 * summary.mean_surface_coverage,
+        summary.path_length_m, summary.seconds, (options_.output_dir / "mav0").string());
     return 0;
   }
 
@@ -92,9 +92,10 @@ class SimulateCommand : public Command {
     sub_->add_option("--segment", segment_,
                      "Use the 'seq: N' block of a multi-recording file (OpenLORIS)");
     sub_->add_option("--motion-convention", convention_,
-                     "Axes of the trajectory's frame: auto, body (EuRoC/TUM-VI IMU), forward-x "
-                     "(robot base, x forward z up), camera (KITTI)")
-        ->check(CLI::IsMember({"auto", "body", "forward-x", "camera"}))
+                     "Axes of the trajectory's frame: auto, body (EuRoC IMU, x up, cameras along "
+                     "z), tum-vi (TUM-VI IMU, z up, cameras along -y), forward-x (robot base, x "
+                     "forward z up), camera (KITTI)")
+        ->check(CLI::IsMember({"auto", "body", "tum-vi", "forward-x", "camera"}))
         ->capture_default_str();
     sub_->add_option("--start", options_.motion.start_s, "Skip this much of the trajectory [s]")
         ->check(CLI::NonNegativeNumber)

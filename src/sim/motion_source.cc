@@ -25,7 +25,18 @@ bool declaresBaseLinkFrame(const fs::path& file) {
   return false;
 }
 
-MotionConvention resolveConvention(const MotionSourceOptions& options) {
+/// Whether the tracked frame's z axis is, on average over the trajectory, the one of its axes
+/// closest to the world's up (+z): a TUM-VI IMU held upright, where a EuRoC IMU has x up.
+bool trackedFrameHasZUp(const Trajectory& source) {
+  Eigen::Vector3d up_in_tracked = Eigen::Vector3d::Zero();
+  for (const StampedPose& pose : source)
+    up_in_tracked += pose.T_w_x.rotation().row(2).transpose();  // R^T * world z
+  Eigen::Index axis = 0;
+  up_in_tracked.maxCoeff(&axis);
+  return axis == 2;
+}
+
+MotionConvention resolveConvention(const MotionSourceOptions& options, const Trajectory& source) {
   if (options.convention != MotionConvention::kAuto) return options.convention;
   if (!options.trajectory_file) return MotionConvention::kForwardX;  // procedural: x forward
   const auto format = options.read.format == io::TrajectoryFormat::kAuto
@@ -33,7 +44,7 @@ MotionConvention resolveConvention(const MotionSourceOptions& options) {
                           : options.read.format;
   if (format == io::TrajectoryFormat::kKitti) return MotionConvention::kCamera;
   if (declaresBaseLinkFrame(*options.trajectory_file)) return MotionConvention::kForwardX;
-  return MotionConvention::kBody;
+  return trackedFrameHasZUp(source) ? MotionConvention::kTumVi : MotionConvention::kBody;
 }
 
 /// Body axes expressed in the tracked frame: the camera (z forward, y down) must look along the
@@ -50,6 +61,11 @@ SE3d bodyInTrackedFrame(MotionConvention convention, double mount_height_m) {
       R.col(0) = -Eigen::Vector3d::UnitY();
       R.col(1) = Eigen::Vector3d::UnitX();
       R.col(2) = Eigen::Vector3d::UnitZ();
+      return SE3d(R, Eigen::Vector3d::Zero());
+    case MotionConvention::kTumVi:  // TUM-VI IMU: right -x, forward -y, up z
+      R.col(0) = Eigen::Vector3d::UnitZ();
+      R.col(1) = -Eigen::Vector3d::UnitX();
+      R.col(2) = -Eigen::Vector3d::UnitY();
       return SE3d(R, Eigen::Vector3d::Zero());
     case MotionConvention::kBody:
     case MotionConvention::kAuto:
@@ -88,8 +104,10 @@ MotionConvention parseMotionConvention(const std::string& name) {
   if (name == "body") return MotionConvention::kBody;
   if (name == "forward-x") return MotionConvention::kForwardX;
   if (name == "camera") return MotionConvention::kCamera;
-  throw OptionError("motion-convention",
-                    fmt::format("unknown convention '{}' (auto|body|forward-x|camera)", name));
+  if (name == "tum-vi") return MotionConvention::kTumVi;
+  throw OptionError(
+      "motion-convention",
+      fmt::format("unknown convention '{}' (auto|body|tum-vi|forward-x|camera)", name));
 }
 
 std::string toString(MotionConvention convention) {
@@ -102,6 +120,8 @@ std::string toString(MotionConvention convention) {
       return "forward-x";
     case MotionConvention::kCamera:
       return "camera";
+    case MotionConvention::kTumVi:
+      return "tum-vi";
   }
   return "unknown";
 }
@@ -110,10 +130,10 @@ MotionWindow loadMotion(const MotionSourceOptions& options, double procedural_ex
   if (!(options.duration_s > 0.0)) throw OptionError("duration", "must be > 0");
   if (options.start_s < 0.0) throw OptionError("start", "must be >= 0");
   MotionWindow result;
-  result.convention = resolveConvention(options);
   const Trajectory source = options.trajectory_file
                                 ? io::readTrajectory(*options.trajectory_file, options.read)
                                 : proceduralSource(procedural_extent_m, options.duration_s);
+  result.convention = resolveConvention(options, source);
   const TimeNs source_begin = source.front().t_ns + (options.trajectory_file ? 0 : kMarginNs);
   result.window.begin = source_begin + secondsToNs(options.start_s);
   result.window.end = result.window.begin + secondsToNs(options.duration_s);

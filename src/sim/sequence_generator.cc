@@ -178,6 +178,17 @@ std::map<std::uint16_t, int> countInstances(const cv::Mat& mask) {
   return counts;
 }
 
+/// Fraction of an image's pixels that see a surface: finite depth (the rest is the sky).
+double surfaceShare(const RenderResult& render) {
+  int surface_pixels = 0;
+  for (int r = 0; r < render.depth.rows; ++r) {
+    const auto* row = render.depth.ptr<float>(r);
+    for (int c = 0; c < render.depth.cols; ++c)
+      surface_pixels += std::isfinite(row[c]) ? 1 : 0;
+  }
+  return double(surface_pixels) / (render.depth.rows * render.depth.cols);
+}
+
 cv::Vec3b segmentationColour(std::uint16_t id) {
   if (id == 0) return {70, 70, 70};
   // A fixed pseudo-random bright colour per id (deterministic across runs and machines).
@@ -316,7 +327,7 @@ class SequenceWriter {
     states << "# t_ns,id,moving,pixels_cam0,pixels_cam1   (agents seen by either camera)\n";
     const int per_frame_landmarks =
         static_cast<int>(std::ceil(double(options_.landmark_count) / frame_times_.size()));
-    double in_view_sum = 0.0, coverage_sum = 0.0;
+    double in_view_sum = 0.0, coverage_sum = 0.0, surface_sum = 0.0;
     for (std::size_t k = 0; k < frame_times_.size(); ++k) {
       const TimeNs t = frame_times_[k];
       const std::string name = fmt::format("{}.png", t);
@@ -335,6 +346,7 @@ class SequenceWriter {
       }
       const int in_view = writeInstanceStates(states, t, left, right, &coverage_sum);
       in_view_sum += in_view;
+      surface_sum += surfaceShare(left);
       summary->max_moving_in_view = std::max(summary->max_moving_in_view, double(in_view));
       if (static_cast<int>(landmarks_.size()) < options_.landmark_count) {
         sampleLandmarks(left, camera_, cameraPose(0, t), t, per_frame_landmarks, rng_, &landmarks_);
@@ -349,6 +361,7 @@ class SequenceWriter {
     summary->frames = static_cast<int>(frame_times_.size());
     summary->mean_moving_in_view = in_view_sum / frame_times_.size();
     summary->mean_agent_coverage = coverage_sum / frame_times_.size();
+    summary->mean_surface_coverage = surface_sum / frame_times_.size();
     stats.summarize(summary);
   }
 
@@ -491,12 +504,14 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
   out << fmt::format(
       "summary:\n  frames: {}\n  imu_samples: {}\n"
       "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"
-      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  path_length_m: {:.3f}\n"
+      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  mean_surface_coverage: {:.4f}\n"
+      "  path_length_m: {:.3f}\n"
       "  mean_blur_samples: {:.3f}\n  mean_exposure_motion_px: {:.3f}\n"
       "  max_exposure_motion_px: {:.3f}\n  min_gain: {:.4f}\n  max_gain: {:.4f}\n",
       s.frames, s.imu_samples, s.static_agents, s.moving_agents, s.mean_moving_in_view,
-      s.max_moving_in_view, s.mean_agent_coverage, s.path_length_m, s.mean_blur_samples,
-      s.mean_exposure_motion_px, s.max_exposure_motion_px, s.min_gain, s.max_gain);
+      s.max_moving_in_view, s.mean_agent_coverage, s.mean_surface_coverage, s.path_length_m,
+      s.mean_blur_samples, s.mean_exposure_motion_px, s.max_exposure_motion_px, s.min_gain,
+      s.max_gain);
 }
 
 }  // namespace

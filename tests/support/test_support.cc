@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 
 namespace superdyna::test {
@@ -21,6 +22,28 @@ fs::path sharedDir() {
 fs::path sharedPath(const std::string& relative) {
   const fs::path p = sharedDir() / relative;
   return fs::exists(p) ? fs::weakly_canonical(p) : fs::path{};
+}
+
+bool sharedDataRequired() {
+  const char* env = std::getenv(kRequireSharedVariable);
+  return env != nullptr && std::string(env) == "1";
+}
+
+std::string missingSharedMessage(const std::string& relative) {
+  return "shared data '" + relative + "' not found under " + sharedDir().string() +
+         " (set SUPERDYNA_SHARED_DIR)";
+}
+
+fs::path optionalSharedPath(const std::string& relative, const std::string& without) {
+  fs::path p = sharedPath(relative);
+  if (p.empty()) {
+    if (sharedDataRequired()) {
+      ADD_FAILURE() << missingSharedMessage(relative);
+    } else {
+      std::cout << missingSharedMessage(relative) << ": " << without << "\n";
+    }
+  }
+  return p;
 }
 
 ScopedEnv::ScopedEnv(const char* name, const std::string& value) : name_(name) {

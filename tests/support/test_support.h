@@ -1,5 +1,6 @@
 #pragma once
-// Helpers shared by the tests: where ../shared lives, skipping when it is absent, scratch folders.
+// Helpers shared by the tests: where ../shared lives, skipping (or, in CI, failing) when it is
+// absent, scratch folders.
 
 #include <gtest/gtest.h>
 
@@ -17,6 +18,21 @@ std::filesystem::path sharedDir();
 
 /// `sharedDir() / relative` if it exists, else an empty path.
 std::filesystem::path sharedPath(const std::string& relative);
+
+/// The environment variable that turns every skip for missing shared data into a failure.
+inline constexpr const char* kRequireSharedVariable = "SUPERDYNA_REQUIRE_SHARED";
+
+/// Whether missing shared data fails a test instead of skipping it: $SUPERDYNA_REQUIRE_SHARED is
+/// "1". CI sets it: it always has ../shared, so a skip there would hide data that went missing.
+bool sharedDataRequired();
+
+/// "shared data 'relative' not found under DIR (set SUPERDYNA_SHARED_DIR)".
+std::string missingSharedMessage(const std::string& relative);
+
+/// For a test that has a use for a shared file but can do without it: `sharedPath(relative)`, or,
+/// when the file is absent, an empty path after printing the message and what the test does
+/// without it (`without`) -- a non-fatal failure instead when sharedDataRequired().
+std::filesystem::path optionalSharedPath(const std::string& relative, const std::string& without);
 
 /// A fresh, empty folder for one test, removed by the destructor.
 class ScratchDir {
@@ -67,10 +83,14 @@ void writeFile(const std::filesystem::path& file, const std::string& content);
 
 }  // namespace superdyna::test
 
-/// Skips the current test with a message when a shared file or folder is absent.
-#define SUPERDYNA_REQUIRE_SHARED(var, relative)                                      \
-  const std::filesystem::path var = ::superdyna::test::sharedPath(relative);         \
-  if (var.empty()) {                                                                 \
-    GTEST_SKIP() << "shared data '" << (relative) << "' not found under "            \
-                 << ::superdyna::test::sharedDir() << " (set SUPERDYNA_SHARED_DIR)"; \
+/// Declares `var` = sharedPath(relative); when that is absent, skips the current test with a
+/// message, or fails it with the same message when sharedDataRequired(). Every test that needs
+/// shared data or models goes through this macro or optionalSharedPath().
+#define SUPERDYNA_REQUIRE_SHARED(var, relative)                              \
+  const std::filesystem::path var = ::superdyna::test::sharedPath(relative); \
+  if (var.empty()) {                                                         \
+    if (::superdyna::test::sharedDataRequired()) {                           \
+      GTEST_FAIL() << ::superdyna::test::missingSharedMessage(relative);     \
+    }                                                                        \
+    GTEST_SKIP() << ::superdyna::test::missingSharedMessage(relative);       \
   }

@@ -141,12 +141,11 @@ std::vector<Frame> eurocFrames(const std::filesystem::path& path, FrontEndOption
 TEST(FrontEnd, ParallelExtractionGivesTheFeaturesOfSequentialExtraction) {
   SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
   std::vector<FrontEndOptions> configurations(1);  // ORB
-  if (const auto model = test::sharedDir() / "models/xfeat.onnx"; std::filesystem::exists(model)) {
+  if (const auto model = test::optionalSharedPath("models/xfeat.onnx", "ORB only");
+      !model.empty()) {
     configurations.emplace_back();
     configurations.back().features.type = features::FeatureType::kXFeat;
     configurations.back().features.model = model.string();
-  } else {
-    std::cout << "models/xfeat.onnx absent: ORB only\n";
   }
   for (const FrontEndOptions& options : configurations) {
     SCOPED_TRACE(features::toString(options.features.type));

@@ -3,7 +3,8 @@
 // OpenLORIS robot base poses, KITTI camera poses) or a procedural flight. Each source's tracked
 // frame has its own axes; the motion convention turns it into the body (IMU) frame of a
 // EuRoC-like rig, whose cameras look along the body z axis with image "up" along body x, in a
-// z-up world with gravity along -z.
+// z-up world with gravity along -z. The rig's camera then looks where the source's camera did
+// (up to the source's small camera-IMU misalignment and offset).
 
 #include <filesystem>
 #include <optional>
@@ -16,14 +17,19 @@ namespace superdyna::sim {
 
 enum class MotionConvention {
   kAuto,      ///< KITTI poses -> kCamera; files with a "frame: base_link" line -> kForwardX;
-              ///< otherwise kBody.
-  kBody,      ///< The file tracks a EuRoC-like IMU body in a z-up world: used as is.
+              ///< otherwise kTumVi when the tracked frame's z axis points up on average (of its
+              ///< three axes the closest to the world's +z), else kBody.
+  kBody,      ///< The file tracks a EuRoC-like IMU body in a z-up world: used as is (EuRoC's
+              ///< IMU has x up, the cameras look along z).
+  kTumVi,     ///< A TUM-VI IMU in a z-up world: z up, the cameras look along -y, image right
+              ///< along -x (TUM-VI's cam0 T_cam_imu, to within 3 degrees).
   kForwardX,  ///< A vehicle/robot frame, x forward, z up (OpenLORIS base_link): camera looks
               ///< forward, mounted `mount_height_m` above the tracked frame.
   kCamera,    ///< A camera frame, x right, y down, z forward, in a y-down world (KITTI).
 };
 
-MotionConvention parseMotionConvention(const std::string& name);  ///< auto|body|forward-x|camera
+/// auto|body|tum-vi|forward-x|camera
+MotionConvention parseMotionConvention(const std::string& name);
 std::string toString(MotionConvention convention);
 
 struct MotionSourceOptions {

@@ -84,6 +84,8 @@ struct SimulationSummary {
   double mean_moving_in_view = 0.0;  ///< Moving agents with >= 50 pixels in cam0, per frame.
   double max_moving_in_view = 0.0;
   double mean_agent_coverage = 0.0;  ///< Fraction of cam0 pixels on agents, per frame.
+  /// Fraction of cam0 pixels that see a surface (textured world or agent, not the sky), per frame.
+  double mean_surface_coverage = 0.0;
   double path_length_m = 0.0;
   double mean_blur_samples = 1.0;        ///< Sub-frames per image, over both cameras.
   double mean_exposure_motion_px = 0.0;  ///< Largest image motion over the exposure, per image.
