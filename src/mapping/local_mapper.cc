@@ -25,6 +25,7 @@ void LocalMapperOptions::validate() const {
   if (!(sigma0_px > 0.0)) throw OptionError("mapping.sigma0_px", "must be > 0");
   if (!(scale_factor > 1.0)) throw OptionError("mapping.scale_factor", "must be > 1");
   triangulation.validate();
+  fusion.validate();
   keyframe_culling.validate();
   inertial_init.validate();
   if (!(refine_first_s >= 0.0)) throw OptionError("mapping.refine_first_s", "must be >= 0");
@@ -39,12 +40,29 @@ void LocalMapperOptions::validate() const {
   if (inertial_iterations < 1) throw OptionError("mapping.inertial_iterations", "must be >= 1");
 }
 
+namespace {
+
+PointFusionOptions fusionOptions(const LocalMapperOptions& options) {
+  PointFusionOptions fusion = options.fusion;
+  fusion.sigma0_px = options.sigma0_px;
+  return fusion;
+}
+
+const optim::ReprojectionCamera& leftCamera(const std::vector<optim::ReprojectionCamera>& cameras) {
+  if (cameras.empty()) throw OptionError("cameras", "the local mapper needs the left camera");
+  return cameras.front();
+}
+
+}  // namespace
+
 LocalMapper::LocalMapper(const LocalMapperOptions& options,
                          std::vector<optim::ReprojectionCamera> cameras,
                          const std::optional<io::ImuCalibration>& imu)
-    : options_(options), cameras_(std::move(cameras)), imu_(imu) {
+    : options_(options),
+      cameras_(std::move(cameras)),
+      imu_(imu),
+      fuser_(fusionOptions(options), leftCamera(cameras_)) {
   options_.validate();
-  if (cameras_.empty()) throw OptionError("cameras", "the local mapper needs the left camera");
   if (options_.triangulate) {
     PointTriangulatorOptions triangulation = options_.triangulation;
     triangulation.sigma0_px = options_.sigma0_px;
@@ -75,6 +93,7 @@ LocalMappingResult LocalMapper::processKeyFrame(map::Map& map, map::KeyFrameId n
     for (const map::MapPointId point : triangulator_->createPoints(map, newest))
       recent_points_.emplace_back(point, newest);
   }
+  result.fusion = fuser_.fuse(map, newest);
   const BundleAdjustmentResult ba =
       inertialInitialized() ? inertialBundleAdjust(map, newest) : visualBundleAdjust(map, newest);
   result.observations += ba.observations;

@@ -67,6 +67,7 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.projection.same_class_only = options.front_end.features.class_wise_matching;
   options.tracker.reference_matching.matching.same_class_only =
       options.front_end.features.class_wise_matching;
+  options.mapping.fusion.same_class_only = options.front_end.features.class_wise_matching;
   options.validate();
   return options;
 }

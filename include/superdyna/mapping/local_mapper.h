@@ -1,7 +1,9 @@
 #pragma once
 // Local mapping, run sequentially after each new keyframe.
 //
-// Visual (stereo or mono, or with IMU before the inertial initialisation): local bundle
+// New points (triangulation between keyframes, when on) are followed by the fusion of duplicated
+// points with the neighbours' (point_fusion.h). Then, visual (stereo or mono, or with IMU before
+// the inertial initialisation): local bundle
 // adjustment with Ceres over the newest keyframe and its best covisible keyframes; keyframes
 // outside the window that observe its points add their observations with fixed poses (the gauge,
 // as in ORB-SLAM; the map's first keyframe is held too).
@@ -31,6 +33,7 @@
 #include "superdyna/mapping/inertial_map_initializer.h"
 #include "superdyna/mapping/keyframe_culling.h"
 #include "superdyna/mapping/keyframe_preintegration.h"
+#include "superdyna/mapping/point_fusion.h"
 #include "superdyna/mapping/point_triangulator.h"
 #include "superdyna/optim/reprojection_factor.h"
 
@@ -54,6 +57,9 @@ struct LocalMapperOptions {
   /// source of new points in monocular maps). Its sigma0_px and scale_factor are the ones above.
   bool triangulate = false;
   PointTriangulatorOptions triangulation;
+  /// Fusion of duplicated points with the neighbours' after the new points, before the BA. Its
+  /// sigma0_px is the one above.
+  PointFusionOptions fusion;
   KeyFrameCullingOptions keyframe_culling;  ///< Redundant keyframe removal.
 
   // ---- With IMU ----
@@ -78,6 +84,7 @@ struct LocalMappingResult {
   std::optional<Sim3d> world_change;
   bool inertial_initialization = false;  ///< An (re-)initialisation ran and was applied.
   std::vector<map::KeyFrameId> culled;   ///< Keyframes removed.
+  PointFusionResult fusion;              ///< Points merged and observations added.
 };
 
 class LocalMapper {
@@ -128,6 +135,7 @@ class LocalMapper {
   std::map<map::KeyFrameId, RightObservations> right_;
   std::vector<std::pair<map::MapPointId, map::KeyFrameId>> recent_points_;
   std::optional<PointTriangulator> triangulator_;
+  PointFuser fuser_;
   int initializations_ = 0;  ///< Inertial (re-)initialisations applied to the current map.
 };
 
