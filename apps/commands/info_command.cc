@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 
@@ -41,10 +42,12 @@ void printEuroc(const fs::path& path) {
   if (const auto& imu = d.imuCalibration()) {
     fmt::print(
         "  imu0: {} samples, {}; {} Hz, gyro {:.4e} rad/s/sqrt(Hz) (walk {:.4e}), accel "
-        "{:.4e} m/s^2/sqrt(Hz) (walk {:.4e})\n",
+        "{:.4e} m/s^2/sqrt(Hz) (walk {:.4e}), T_b_i t = ({:.4f}, {:.4f}, {:.4f}) m, turned "
+        "{:.2f} deg\n",
         d.imu().size(), describeRange(*d.imuTimeRange()), imu->rate_hz,
         imu->gyroscope_noise_density, imu->gyroscope_random_walk, imu->accelerometer_noise_density,
-        imu->accelerometer_random_walk);
+        imu->accelerometer_random_walk, imu->T_b_i.t.x(), imu->T_b_i.t.y(), imu->T_b_i.t.z(),
+        imu->T_b_i.q.angularDistance(Eigen::Quaterniond::Identity()) * 180.0 / M_PI);
     fmt::print("  stereo pairs the IMU covers: {}\n", d.framesWithImuCoverage().size());
   }
   if (d.hasGroundTruth()) {

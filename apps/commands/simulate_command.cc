@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "superdyna/sim/sequence_generator.h"
 
@@ -137,6 +138,17 @@ class SimulateCommand : public Command {
     sub_->add_option("--baseline", options_.rig.baseline_m, "Stereo baseline [m]")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    sub_->add_option("--imu-offset", imu_offset_,
+                     "IMU origin in the body frame, X,Y,Z [m] (default 0,0,0: the IMU is the body "
+                     "frame, as in EuRoC). The ground truth stays the body's; imu0/sensor.yaml "
+                     "gets the IMU's T_BS and the IMU measures at its own origin")
+        ->expected(3)
+        ->delimiter(',');
+    sub_->add_option("--imu-rotation", imu_rotation_,
+                     "IMU orientation in the body frame as a rotation vector RX,RY,RZ (axis times "
+                     "angle) [deg], default 0,0,0")
+        ->expected(3)
+        ->delimiter(',');
   }
 
   /// Motion blur and illumination changes, to stress the visual front end.
@@ -222,8 +234,14 @@ class SimulateCommand : public Command {
     options_.texture_dir = texture_dir_;
     options_.noise = noise_ == "on";
     options_.rig.distortion = distortion_ == "on";
+    if (!imu_offset_.empty()) options_.rig.imu_offset_m = vector3(imu_offset_);
+    if (!imu_rotation_.empty()) options_.rig.imu_rotation_deg = vector3(imu_rotation_);
     options_.motion_blur_exposure_s = 1e-3 * exposure_ms_;
     sim::setIlluminationModes(illumination_, &options_.illumination);
+  }
+
+  static Eigen::Vector3d vector3(const std::vector<double>& values) {
+    return Eigen::Vector3d(values.at(0), values.at(1), values.at(2));
   }
 
   CLI::App* sub_ = nullptr;
@@ -238,6 +256,8 @@ class SimulateCommand : public Command {
   std::optional<fs::path> texture_dir_;
   std::string noise_ = "on";
   std::string distortion_ = "off";
+  std::vector<double> imu_offset_;
+  std::vector<double> imu_rotation_;
   double exposure_ms_ = 0.0;
   std::string illumination_ = "none";
 };

@@ -535,6 +535,9 @@ std::string Map::observationError() const {
           observation->second != static_cast<int>(i)) {
         return describePair(point_id, keyframe_id) + ": keyframe side not mirrored";
       }
+      if (!keyframe.keypoints[i].valid()) {
+        return describePair(point_id, keyframe_id) + ": observed keypoint is not valid()";
+      }
     }
   }
   for (const auto& [point_id, point] : points_) {

@@ -227,6 +227,7 @@ class Problem {
       for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
         const map::MapPointId point_id = kf.map_points[i];
         if (point_id == map::kNoMapPoint || !points_.contains(point_id)) continue;
+        if (!kf.keypoints[i].valid()) continue;  // undistortion failed: no observation
         candidates.push_back(
             newCandidate(id, point_id, 0, kf.keypoints[i].normalized, kf.keypoints[i].octave));
         if (cameras_.size() > 1 && hasRight(right, i)) {

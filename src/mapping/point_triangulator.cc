@@ -40,7 +40,7 @@ struct PointTriangulator::View {
   map::KeyFrame keyframe;
   SE3d T_w_c;
   SE3d T_c_w;
-  std::vector<bool> free;  ///< Keypoint observes no map point (yet).
+  std::vector<bool> free;  ///< Keypoint observes no map point (yet) and is valid().
 };
 
 namespace {
@@ -105,8 +105,11 @@ std::vector<map::MapPointId> PointTriangulator::createPoints(map::Map& map,
     view.T_w_c = view.keyframe.T_w_b * camera_.T_b_c;
     view.T_c_w = view.T_w_c.inverse();
     view.free.resize(view.keyframe.size());
-    for (std::size_t i = 0; i < view.keyframe.size(); ++i)
-      view.free[i] = view.keyframe.map_points[i] == map::kNoMapPoint;
+    for (std::size_t i = 0; i < view.keyframe.size(); ++i) {
+      // A keypoint whose undistortion failed has no ray to triangulate.
+      view.free[i] =
+          view.keyframe.map_points[i] == map::kNoMapPoint && view.keyframe.keypoints[i].valid();
+    }
     return view;
   };
   if (!map.hasKeyFrame(keyframe)) return {};

@@ -42,12 +42,20 @@ class GaussianSource {
   std::normal_distribution<double> gauss_{0.0, 1.0};
 };
 
-/// The exact (noise- and bias-free) measurement of the body motion at one time.
-ImuMeasurement idealMeasurement(const Se3SplineState& s, const Eigen::Vector3d& g_w) {
+/// The exact (noise- and bias-free) measurement at one time of an IMU mounted at T_b_i on the
+/// body: the body's rates in the IMU frame; the specific force at the IMU origin, whose
+/// acceleration adds the tangential (alpha x t) and centripetal (omega x (omega x t)) terms of
+/// the lever arm t = t_b_i to the body's.
+ImuMeasurement idealMeasurement(const Se3SplineState& s, const Eigen::Vector3d& g_w,
+                                const SE3d& T_b_i) {
+  const Eigen::Vector3d& t = T_b_i.t;
+  const Eigen::Vector3d lever_b = s.alpha_b.cross(t) + s.omega_b.cross(s.omega_b.cross(t));
+  const Eigen::Vector3d a_w_i = s.a_w + s.T_w_b.q * lever_b;
+  const Eigen::Quaterniond q_i_b = T_b_i.q.conjugate();
   ImuMeasurement m;
   m.t_ns = s.t_ns;
-  m.gyro = s.omega_b;
-  m.accel = s.T_w_b.q.conjugate() * (s.a_w - g_w);
+  m.gyro = q_i_b * s.omega_b;
+  m.accel = q_i_b * (s.T_w_b.q.conjugate() * (a_w_i - g_w));
   return m;
 }
 
@@ -82,7 +90,8 @@ double ImuNoiseOptions::accelerometerBiasStepStd() const {
   return accelerometer_random_walk / std::sqrt(rate_hz);
 }
 
-ImuSimulator::ImuSimulator(const ImuNoiseOptions& options) : options_(options) {
+ImuSimulator::ImuSimulator(const ImuNoiseOptions& options, const SE3d& T_b_i)
+    : options_(options), T_b_i_(T_b_i) {
   options_.validate();
 }
 
@@ -107,7 +116,7 @@ ImuSequence ImuSimulator::simulate(const Se3Spline& motion, TimeRange range) con
     const TimeNs t_ns = sampleTime(range.begin, k, options_.rate_hz);
     if (t_ns > range.end) break;
     const Se3SplineState s = motion.state(t_ns);
-    ImuMeasurement m = idealMeasurement(s, g_w);
+    ImuMeasurement m = idealMeasurement(s, g_w, T_b_i_);
     m.gyro += bg;
     m.accel += ba;
     out.states.push_back({t_ns, s.T_w_b, s.v_w, bg, ba});

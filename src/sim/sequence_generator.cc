@@ -87,9 +87,9 @@ void writeCameraYaml(const fs::path& file, const std::string& name, const RigOpt
              k[2], k[3]);
 }
 
-void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu) {
+void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu, const SE3d& T_b_i) {
   auto out = openForWriting(file);
-  out << sensorHeader("imu", "SuperDynaSLAM simulated IMU (EuRoC ADIS16448-like noise)", SE3d())
+  out << sensorHeader("imu", "SuperDynaSLAM simulated IMU (EuRoC ADIS16448-like noise)", T_b_i)
       << fmt::format(
              "rate_hz: {}\n\n# inertial sensor noise model parameters (static)\n"
              "gyroscope_noise_density: {:.6e}     # [ rad / s / sqrt(Hz) ]\n"
@@ -113,6 +113,8 @@ void writeImuData(const fs::path& file, const ImuSequence& imu) {
 void writeGroundTruth(const fs::path& folder, const ImuSequence& imu) {
   {
     auto yaml = openForWriting(folder / "sensor.yaml");
+    // The ground truth is the body's pose and velocity (the IMU's only when it is the body frame)
+    // and the IMU's biases in the IMU frame.
     yaml << sensorHeader("visual-inertial", "SuperDynaSLAM simulation ground truth", SE3d());
   }
   auto out = openForWriting(folder / "data.csv");
@@ -483,12 +485,14 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
       "trajectory: {}\nmotion_convention: {}\nstart_s: {}\nduration_s: {}\nscene: {}\n"
       "dynamic: {}\nseed: {}\nnoise: {}\npixel_noise_sigma: {}\ndistortion: {}\n"
       "texture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\nimu_rate_hz: {}\n"
-      "knot_spacing_s: {}\n",
+      "knot_spacing_s: {}\nimu_offset_m: [{}, {}, {}]\nimu_rotation_deg: [{}, {}, {}]\n",
       o.motion.trajectory_file ? o.motion.trajectory_file->string() : "procedural",
       toString(m.convention), o.motion.start_s, o.motion.duration_s, toString(o.world.scene),
       toString(o.world.dynamic), o.seed, o.noise, o.pixel_noise_sigma, o.rig.distortion,
       o.texture_dir ? o.texture_dir->string() : "procedural", o.rig.baseline_m,
-      o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s);
+      o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, o.rig.imu_offset_m.x(),
+      o.rig.imu_offset_m.y(), o.rig.imu_offset_m.z(), o.rig.imu_rotation_deg.x(),
+      o.rig.imu_rotation_deg.y(), o.rig.imu_rotation_deg.z());
   out << fmt::format(
       "# Image timestamps are mid-exposure; blur averages sub-frames over the exposure.\n"
       "motion_blur:\n  exposure_ms: {}\n  samples: {}\n  step_px: {}\n  max_samples: {}\n"
@@ -537,10 +541,18 @@ SE3d RigOptions::T_b_c1() const {
   return T_b_c0_pose * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(baseline_m, 0, 0));
 }
 
+SE3d RigOptions::T_b_i() const {
+  return SE3d(expSO3(imu_rotation_deg * (M_PI / 180.0)), imu_offset_m);
+}
+
 void RigOptions::validate() const {
   cameraModel();  // checks size and intrinsics
   if (!(baseline_m > 0.0)) throw OptionError("baseline", "must be > 0");
   if (!(camera_rate_hz > 0.0)) throw OptionError("camera-rate", "must be > 0");
+  if (!imu_offset_m.allFinite()) throw OptionError("imu-offset", "must be finite");
+  if (!imu_rotation_deg.allFinite() || !(imu_rotation_deg.norm() < 180.0)) {
+    throw OptionError("imu-rotation", "must be a finite rotation vector shorter than 180 deg");
+  }
 }
 
 void SimulationOptions::validate() const {
@@ -590,12 +602,13 @@ SimulationSummary generateSequence(const SimulationOptions& options,
   ImuNoiseOptions imu_options = options.imu;
   imu_options.noise = options.noise;
   imu_options.seed = options.seed;
-  const ImuSequence imu = ImuSimulator(imu_options).simulate(spline, motion.window);
+  const ImuSequence imu =
+      ImuSimulator(imu_options, options.rig.T_b_i()).simulate(spline, motion.window);
 
   const fs::path mav0 = options.output_dir / "mav0";
   writeCameraYaml(mav0 / "cam0/sensor.yaml", "cam0", options.rig, options.rig.T_b_c0());
   writeCameraYaml(mav0 / "cam1/sensor.yaml", "cam1", options.rig, options.rig.T_b_c1());
-  writeImuYaml(mav0 / "imu0/sensor.yaml", imu_options);
+  writeImuYaml(mav0 / "imu0/sensor.yaml", imu_options, options.rig.T_b_i());
   writeImuData(mav0 / "imu0/data.csv", imu);
   writeGroundTruth(mav0 / "state_groundtruth_estimate0", imu);
   writeInstances(mav0 / "instances.csv", world.agents);

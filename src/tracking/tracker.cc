@@ -682,7 +682,7 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
     map::KeyFrameKeypoint& k = kf.keypoints[i];
     const features::Keypoint& source = frame.features.keypoints[i];
     k.pixel = source.pixel;
-    k.normalized = frame.normalized[i].allFinite() ? frame.normalized[i] : Eigen::Vector2d::Zero();
+    k.normalized = frame.normalized[i];  // NaN (not valid()) when undistortion failed
     k.octave = source.octave;
     k.angle = source.angle;
     k.class_id = source.class_id;

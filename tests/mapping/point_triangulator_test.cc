@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <opencv2/core.hpp>
 #include <random>
 
@@ -64,6 +65,7 @@ class TwoKeyFrameScene : public ::testing::Test {
           cv::normalize(kf.descriptors.row(j), kf.descriptors.row(j));
         }
       }
+      editKeyFrame(k, kf);
       ids[k] = map.addKeyFrame(std::move(kf));
     }
     for (int i = 0; i < kShared; ++i) {
@@ -78,6 +80,8 @@ class TwoKeyFrameScene : public ::testing::Test {
 
   /// Float descriptors (learned extractors, Euclidean distance) instead of binary ones.
   virtual bool floatDescriptors() const { return false; }
+  /// Changes keyframe k (0 or 1) before it enters the map.
+  virtual void editKeyFrame(int /*k*/, map::KeyFrame& /*kf*/) const {}
 
   optim::ReprojectionCamera camera() const {
     optim::ReprojectionCamera c;
@@ -111,6 +115,43 @@ TEST_F(TwoKeyFrameScene, TriangulatesTheFreeKeypointsAtTheirTruePositions) {
   EXPECT_EQ(map.consistencyError(), "");
   // Everything that could be triangulated was: a second pass adds nothing.
   EXPECT_TRUE(triangulator.createPoints(map, ids[1]).empty());
+}
+
+/// The scene with keypoints whose undistortion failed (normalised coordinates NaN, as the tracker
+/// stores them): free point kShared's keypoint in keyframe 0, and in keyframe 0 a second keypoint
+/// with free point kShared + 1's descriptor (a look-alike far out in the image).
+class FailedUndistortionScene : public TwoKeyFrameScene {
+ protected:
+  static constexpr int kFailed = kShared;
+  static constexpr int kLookAlike = kShared + 1;
+  static constexpr int kLookAlikeIndex = kShared + kFree;  // appended to keyframe 0
+
+  void editKeyFrame(int k, map::KeyFrame& kf) const override {
+    if (k != 0) return;
+    const Eigen::Vector2d nan = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+    kf.keypoints[kFailed].normalized = nan;
+    map::KeyFrameKeypoint look_alike = kf.keypoints[kLookAlike];
+    look_alike.pixel = Eigen::Vector2d(2.0, 3.0);
+    look_alike.normalized = nan;
+    kf.keypoints.push_back(look_alike);
+    cv::vconcat(kf.descriptors, kf.descriptors.row(kLookAlike).clone(), kf.descriptors);
+  }
+};
+
+TEST_F(FailedUndistortionScene, KeypointsWhoseUndistortionFailedAreNeverTriangulated) {
+  const PointTriangulator triangulator({}, camera());
+  // Keyframe 1 searches keyframe 0, where the invalid keypoints are.
+  const std::vector<map::MapPointId> created = triangulator.createPoints(map, ids[1]);
+  EXPECT_GT(static_cast<int>(created.size()), 170);
+  const map::KeyFrame kf0 = *map.keyFrame(ids[0]);
+  // No ray, no point: the failed keypoint observes nothing...
+  EXPECT_EQ(kf0.map_points[kFailed], map::kNoMapPoint);
+  EXPECT_EQ(kf0.map_points[kLookAlikeIndex], map::kNoMapPoint);
+  // ... and the invalid look-alike does not make the true match ambiguous (ratio test).
+  const map::MapPointId id = kf0.map_points[kLookAlike];
+  ASSERT_NE(id, map::kNoMapPoint);
+  EXPECT_LT((map.mapPoint(id)->p_w - points[static_cast<std::size_t>(kLookAlike)]).norm(), 1e-6);
+  EXPECT_EQ(map.consistencyError(), "");
 }
 
 class TwoKeyFrameFloatScene : public TwoKeyFrameScene {

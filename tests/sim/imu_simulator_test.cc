@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <string>
 
 #include "superdyna/core/error.h"
 #include "superdyna/io/trajectory_io.h"
@@ -172,15 +173,20 @@ TEST(ImuSimulatorTest, AtRestTheAccelerometerMeasuresGravityUpwards) {
   }
 }
 
-TEST(ImuSimulatorTest, NoiseFreeMeasurementsIntegrateBackToTheProceduralTrajectory) {
-  const ImuSequence imu = ImuSimulator(noiseFree()).simulate(lissajousMotion());
+/// Prints the worst 1 s integration error of `imu` against its states (`what` names the motion)
+/// and expects it within 1 mm and 0.01 deg.
+void expectIntegratesBack(const ImuSequence& imu, const std::string& what) {
   const IntegrationError e = worstOneSecondWindow(imu, 50);
   std::cout << fmt::format(
-      "[ info ] Lissajous, worst 1 s window: position {:.4f} mm, rotation "
-      "{:.5f} deg, velocity {:.4f} mm/s\n",
-      1e3 * e.position_m, e.rotation_deg, 1e3 * e.velocity_mps);
-  EXPECT_LT(e.position_m, 1e-3);
-  EXPECT_LT(e.rotation_deg, 0.01);
+      "[ info ] {}, worst 1 s window: position {:.4f} mm, rotation {:.5f} deg, velocity {:.4f} "
+      "mm/s\n",
+      what, 1e3 * e.position_m, e.rotation_deg, 1e3 * e.velocity_mps);
+  EXPECT_LT(e.position_m, 1e-3) << what;
+  EXPECT_LT(e.rotation_deg, 0.01) << what;
+}
+
+TEST(ImuSimulatorTest, NoiseFreeMeasurementsIntegrateBackToTheProceduralTrajectory) {
+  expectIntegratesBack(ImuSimulator(noiseFree()).simulate(lissajousMotion()), "Lissajous");
 }
 
 TEST(ImuSimulatorTest, NoiseFreeMeasurementsIntegrateBackToEurocGroundTruth) {
@@ -192,14 +198,41 @@ TEST(ImuSimulatorTest, NoiseFreeMeasurementsIntegrateBackToEurocGroundTruth) {
   for (const StampedPose& p : all) {
     if (p.t_ns >= begin && p.t_ns <= begin + 30 * kNsPerSecond) samples.push_back(p);
   }
-  const ImuSequence imu = ImuSimulator(noiseFree()).simulate(Se3Spline::fit(samples, kKnotNs));
-  const IntegrationError e = worstOneSecondWindow(imu, 50);
-  std::cout << fmt::format(
-      "[ info ] EuRoC MH_01 spline, worst 1 s window: position {:.4f} mm, "
-      "rotation {:.5f} deg, velocity {:.4f} mm/s\n",
-      1e3 * e.position_m, e.rotation_deg, 1e3 * e.velocity_mps);
-  EXPECT_LT(e.position_m, 1e-3);
-  EXPECT_LT(e.rotation_deg, 0.01);
+  expectIntegratesBack(ImuSimulator(noiseFree()).simulate(Se3Spline::fit(samples, kKnotNs)),
+                       "EuRoC MH_01 spline");
+}
+
+/// The ground truth moved from the body to an IMU at T_b_i: its pose T_w_b T_b_i and its origin's
+/// velocity v_b + R_w_b (omega_b x t_b_i), for worstOneSecondWindow.
+ImuSequence atImu(ImuSequence imu, const Se3Spline& motion, const SE3d& T_b_i) {
+  for (ImuState& state : imu.states) {
+    const Se3SplineState s = motion.state(state.t_ns);
+    state.T_w_b = s.T_w_b * T_b_i;
+    state.v_w = s.v_w + s.T_w_b.q * s.omega_b.cross(T_b_i.t);
+  }
+  return imu;
+}
+
+TEST(ImuSimulatorTest, OffsetImuMeasurementsIntegrateBackToTheImuTrajectory) {
+  // An IMU 37 cm from the body origin, turned about all axes: its gyroscope sees the body rates in
+  // its own frame, its accelerometer the acceleration of its own origin, which adds the lever
+  // arm's tangential and centripetal terms to the body's.
+  const SE3d T_b_i(expSO3(Eigen::Vector3d(0.3, -0.9, 1.4)), Eigen::Vector3d(0.3, -0.2, 0.1));
+  const Se3Spline motion = lissajousMotion();
+  const ImuSequence imu = ImuSimulator(noiseFree(), T_b_i).simulate(motion);
+  for (std::size_t k = 0; k < imu.measurements.size(); k += 101) {
+    const Se3SplineState s = motion.state(imu.measurements[k].t_ns);
+    EXPECT_LT((T_b_i.q * (imu.measurements[k].gyro - imu.states[k].bg) - s.omega_b).norm(), 1e-12);
+    EXPECT_EQ(imu.states[k].T_w_b.t, s.T_w_b.t);  // the ground truth stays the body's
+  }
+  expectIntegratesBack(atImu(imu, motion, T_b_i), "Lissajous, offset IMU");
+  // Without the lever arm's terms (the IMU only turned) the same integration misses by far more.
+  const SE3d turned(T_b_i.q, Eigen::Vector3d::Zero());
+  const ImuSequence no_lever = ImuSimulator(noiseFree(), turned).simulate(motion);
+  const double no_lever_m = worstOneSecondWindow(atImu(no_lever, motion, T_b_i), 50).position_m;
+  std::cout << fmt::format("[ info ] without the lever-arm terms: position {:.1f} mm\n",
+                           1e3 * no_lever_m);
+  EXPECT_GT(no_lever_m, 10.0 * 1e-3);
 }
 
 /// Sample standard deviation of the entries of a 3 x n matrix (all axes pooled) and per axis.

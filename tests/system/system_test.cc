@@ -347,6 +347,62 @@ TEST(StereoInertialSlam, BridgesAShortTrackingFailureWithTheImu) {
   EXPECT_EQ(short_bridge.resets, 1);
 }
 
+/// syntheticSequence()'s flight (same body motion and images) with the IMU mounted 23 cm from the
+/// body origin and turned by 81 deg: imu0/sensor.yaml's T_BS says where, and the IMU measures in
+/// its own frame at its own origin.
+sim::SimulationOptions offsetImuOptions() {
+  sim::SimulationOptions options =
+      test::flightOptions(8.0, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 7);
+  options.rig.imu_offset_m = Eigen::Vector3d(0.2, -0.1, 0.05);
+  options.rig.imu_rotation_deg = Eigen::Vector3d(30.0, -60.0, 45.0);
+  return options;
+}
+
+/// Stereo-inertial over the first 5 s of `path`, with the IMU pose in the body frame replaced by
+/// `T_b_i` when given.
+RunSummary runStereoInertialFiveSeconds(const fs::path& path,
+                                        const std::optional<SE3d>& T_b_i = std::nullopt) {
+  io::DatasetSourceOptions source_options;
+  source_options.max_frames = 100;
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, path, source_options);
+  std::optional<io::ImuCalibration> imu = source->imu();
+  if (T_b_i) imu->T_b_i = *T_b_i;
+  SystemOptions options;
+  options.mode = SensorMode::kStereoInertial;
+  System slam(options, source->camera0(), source->camera1(), imu);
+  while (const auto frame = source->next())
+    slam.process(*frame);
+  RunSummary run = summaryOf(slam, *source);
+  run.lost = slam.lostFrames();
+  run.resets = slam.resets();
+  run.inertial_initialized = slam.inertialInitialized();
+  return run;
+}
+
+TEST(StereoInertialSlam, AnOffsetRotatedImuTracksAsWellAsOneAtTheBodyOrigin) {
+  const sim::SimulationOptions options = offsetImuOptions();
+  const fs::path& offset_path = test::generatedSequence("system_test_offset_imu", options);
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, offset_path, {});
+  ASSERT_TRUE(source->imu());
+  const SE3d T_b_i = options.rig.T_b_i();
+  EXPECT_LT((source->imu()->T_b_i.t - T_b_i.t).norm(), 1e-9);
+  EXPECT_LT(source->imu()->T_b_i.q.angularDistance(T_b_i.q), 1e-9);
+
+  const RunSummary at_origin = runStereoInertialFiveSeconds(syntheticSequence());
+  const RunSummary offset = runStereoInertialFiveSeconds(offset_path);
+  const double ate_origin = ateOf(at_origin).ate_trans.rmse;
+  const double ate_offset = ateOf(offset).ate_trans.rmse;
+  const double path = pathLength(offset.ground_truth);
+  std::cout << "synthetic street, first 5 s, stereo-inertial: ATE rmse " << ate_origin
+            << " m with the IMU at the body origin, " << ate_offset << " m offset and turned ("
+            << path << " m path)\n";
+  EXPECT_TRUE(offset.inertial_initialized);
+  EXPECT_EQ(offset.lost, 0u);
+  EXPECT_EQ(offset.resets, 0);
+  EXPECT_LT(ate_offset, kSyntheticAteBoundFraction * path);
+  EXPECT_LT(ate_offset, 1.5 * ate_origin + 0.002);
+}
+
 /// A 3 s street flight (60 frames), cheaper to generate for the tests that need few frames.
 const fs::path& shortSequence() {
   return test::generatedSequence(

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <random>
 #include <utility>
@@ -427,6 +428,38 @@ TEST(Tracker, FirstFrameOfAMapIsTrackedFromTheReferenceKeyFrame) {
   EXPECT_TRUE(with.from_reference);
   EXPECT_LT((with.T_w_b.t - T_w_b2.t).norm(), 1e-3);
   EXPECT_GE(with.inliers, 195);
+}
+
+TEST(Tracker, KeyFrameKeypointsWhoseUndistortionFailedStayInvalid) {
+  // The front end gives NaN normalised coordinates (and no stereo) where undistortion failed. The
+  // keyframe must keep them invalid rather than place them at the principal point (0, 0), where
+  // triangulation and BA would take them for real observations.
+  const auto [p_w, descriptors] = randomScene(200, 5);
+  Frame first = syntheticFrame(0, SE3d(), p_w, descriptors, true);
+  constexpr std::size_t kFailed = 10;
+  for (std::size_t k = 0; k < kFailed; ++k) {
+    first.normalized[k].setConstant(std::numeric_limits<double>::quiet_NaN());
+    first.depth_m[k] = -1.0;
+    first.right_normalized[k] = std::nullopt;
+  }
+  Tracker tracker = makeTracker();
+  ASSERT_EQ(tracker.track(first).state, TrackingState::kInitialized);
+  const std::vector<map::KeyFrameId> ids = tracker.map().keyFrameIds();
+  ASSERT_EQ(ids.size(), 1u);
+  std::vector<bool> valid;
+  std::size_t observed_invalid = 0;
+  tracker.map().readKeyFrame(ids.front(), [&](const map::KeyFrame& kf) {
+    for (std::size_t k = 0; k < kf.size(); ++k) {
+      valid.push_back(kf.keypoints[k].valid());
+      if (!kf.keypoints[k].valid() && kf.map_points[k] != map::kNoMapPoint) ++observed_invalid;
+    }
+  });
+  ASSERT_EQ(valid.size(), p_w.size());
+  EXPECT_EQ(std::count(valid.begin(), valid.end(), false), static_cast<long>(kFailed));
+  for (std::size_t k = 0; k < kFailed; ++k)
+    EXPECT_FALSE(valid[k]) << k;
+  EXPECT_EQ(observed_invalid, 0u);
+  EXPECT_EQ(tracker.map().consistencyError(), "");
 }
 
 TEST(ReferenceMatching, PoseFromDescriptorsAloneDespiteOutliers) {

@@ -17,7 +17,9 @@ namespace superdyna::map {
 struct KeyFrameKeypoint {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  ///< Detected (distorted) position [px].
   /// Undistorted normalised image coordinates (x/z, y/z) in the keypoint's camera: the quantity the
-  /// optimisation works with, so lens distortion stays out of it.
+  /// optimisation works with, so lens distortion stays out of it. NaN when the undistortion failed
+  /// (far out in a strongly distorted image): the keypoint is then not valid() and is never an
+  /// observation (triangulation, BA), though its pixel and descriptor still serve for matching.
   Eigen::Vector2d normalized = Eigen::Vector2d::Zero();
   int octave = 0;       ///< Pyramid level of detection (0 = full resolution).
   float angle = -1.0f;  ///< Orientation [deg] (features::Keypoint::angle); -1 = none.
@@ -30,6 +32,8 @@ struct KeyFrameKeypoint {
   double depth_m = -1.0;  ///< Stereo depth along the camera z axis [m]; negative = none.
 
   bool hasStereo() const { return depth_m > 0.0; }
+  /// Whether the keypoint has normalised coordinates (its undistortion succeeded).
+  bool valid() const { return normalized.allFinite(); }
 };
 
 struct KeyFrame {

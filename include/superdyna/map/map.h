@@ -202,9 +202,10 @@ class Map {
   /// Ids of the (at most) n keyframes sharing most points with `id`, in the order above.
   std::vector<KeyFrameId> bestCovisibleKeyFrames(KeyFrameId id, int n) const;
 
-  /// Checks every invariant: observations agree on both sides, indices are in range, bad points
-  /// have no observation, and the covisibility graph is symmetric and equals the one rebuilt from
-  /// the observations. Returns "" when all hold, else a description of the first violation.
+  /// Checks every invariant: observations agree on both sides, indices are in range, observed
+  /// keypoints are valid() (undistorted), bad points have no observation, and the covisibility
+  /// graph is symmetric and equals the one rebuilt from the observations. Returns "" when all hold,
+  /// else a description of the first violation.
   std::string consistencyError() const;
 
  private:

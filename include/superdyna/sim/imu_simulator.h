@@ -1,8 +1,9 @@
 #pragma once
 // Synthetic IMU measurements from a smooth body motion (an Se3Spline), with the continuous-time
 // noise model of Kalibr / OpenVINS: white noise plus random-walk biases on gyroscope and
-// accelerometer. World frame z-up, gravity g_w = (0, 0, -gravity). The IMU frame is the body frame
-// b of the spline.
+// accelerometer. World frame z-up, gravity g_w = (0, 0, -gravity). The IMU i is mounted at T_b_i in
+// the body frame b of the spline (identity by default: the IMU is the body frame, as in EuRoC);
+// its measurements are in its own frame, the ground truth states are those of the body.
 
 #include <cstdint>
 #include <vector>
@@ -43,20 +44,20 @@ struct ImuNoiseOptions {
   double accelerometerBiasStepStd() const;
 };
 
-/// One IMU sample in the IMU (body) frame.
+/// One IMU sample in the IMU frame.
 struct ImuMeasurement {
   TimeNs t_ns = 0;
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   ///< Angular rate [rad/s].
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();  ///< Specific force [m/s^2].
 };
 
-/// Ground truth of the IMU at a measurement time.
+/// Ground truth at a measurement time: the body's motion, the IMU's biases.
 struct ImuState {
   TimeNs t_ns = 0;
-  SE3d T_w_b;                                     ///< Pose of the IMU in the world.
-  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Velocity in the world frame [m/s].
-  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias [rad/s].
-  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias [m/s^2].
+  SE3d T_w_b;                                     ///< Pose of the body in the world.
+  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Body origin velocity, world frame [m/s].
+  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias (IMU frame) [rad/s].
+  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias (IMU frame) [m/s^2].
 };
 
 /// Measurements and the ground-truth states at the same times (same length, same order).
@@ -65,18 +66,22 @@ struct ImuSequence {
   std::vector<ImuState> states;
 };
 
-/// Samples an IMU moving along a spline:
-///   gyro_k  = omega_b(t_k) + bg_k + n_g,                 n_g ~ N(0, gyroscopeNoiseStd()^2 I)
-///   accel_k = R_w_b(t_k)^T (a_w(t_k) - g_w) + ba_k + n_a, n_a ~ N(0, accelerometerNoiseStd()^2 I)
-///   bg_{k+1} = bg_k + w_g, ba_{k+1} = ba_k + w_a,        w ~ N(0, *BiasStepStd()^2 I)
-/// with bg_0, ba_0 the initial biases. Deterministic for a seed: every call of simulate() starts
+/// Samples an IMU mounted at T_b_i = (R_b_i, t_b_i) on a body moving along a spline:
+///   gyro_k  = R_b_i^T omega_b(t_k) + bg_k + n_g,            n_g ~ N(0, gyroscopeNoiseStd()^2 I)
+///   accel_k = R_w_i(t_k)^T (a_w_i(t_k) - g_w) + ba_k + n_a, n_a ~ N(0, accelerometerNoiseStd()^2
+///   I) bg_{k+1} = bg_k + w_g, ba_{k+1} = ba_k + w_a,           w ~ N(0, *BiasStepStd()^2 I)
+/// with R_w_i = R_w_b R_b_i, the IMU origin's acceleration (lever arm t_b_i, body-frame angular
+/// velocity omega_b and acceleration alpha_b of the spline)
+///   a_w_i = a_w + R_w_b (alpha_b x t_b_i + omega_b x (omega_b x t_b_i)),
+/// and bg_0, ba_0 the initial biases. Deterministic for a seed: every call of simulate() starts
 /// a fresh generator from options.seed.
 class ImuSimulator {
  public:
-  /// Throws OptionError when the options are invalid.
-  explicit ImuSimulator(const ImuNoiseOptions& options);
+  /// Throws OptionError when the options are invalid. T_b_i: pose of the IMU in the body frame.
+  explicit ImuSimulator(const ImuNoiseOptions& options, const SE3d& T_b_i = SE3d());
 
   const ImuNoiseOptions& options() const { return options_; }
+  const SE3d& T_b_i() const { return T_b_i_; }
 
   /// Samples at t_k = range.begin + round(k * 1e9 / rate_hz) for every t_k <= range.end.
   /// Throws OptionError when `range` is not inside motion.validRange() or end < begin.
@@ -86,6 +91,7 @@ class ImuSimulator {
 
  private:
   ImuNoiseOptions options_;
+  SE3d T_b_i_;
 };
 
 }  // namespace superdyna::sim

@@ -31,7 +31,9 @@
 
 namespace superdyna::sim {
 
-/// The simulated stereo rig: EuRoC-like intrinsics and camera-IMU extrinsics.
+/// The simulated stereo rig: EuRoC-like intrinsics and camera extrinsics, and the IMU. The body
+/// frame is the frame of the motion (the ground truth); by default the IMU is the body frame, as in
+/// EuRoC, or it is mounted at imu_offset_m turned by imu_rotation_deg.
 struct RigOptions {
   int width = 752;
   int height = 480;
@@ -39,12 +41,19 @@ struct RigOptions {
   bool distortion = false;  ///< Apply EuRoC cam0's radial-tangential distortion.
   double baseline_m = 0.11;
   double camera_rate_hz = 20.0;
+  /// Position of the IMU origin in the body frame [m].
+  Eigen::Vector3d imu_offset_m = Eigen::Vector3d::Zero();
+  /// Orientation of the IMU in the body frame as a rotation vector (axis times angle) [deg].
+  Eigen::Vector3d imu_rotation_deg = Eigen::Vector3d::Zero();
 
   CameraModel cameraModel() const;
   /// Camera poses in the body frame: EuRoC cam0's T_BS; cam1 shifted by the baseline along
   /// cam0's x axis, same orientation.
   SE3d T_b_c0() const;
   SE3d T_b_c1() const;
+  /// IMU pose in the body frame (written as imu0's T_BS): R_b_i = Exp(imu_rotation_deg), t_b_i =
+  /// imu_offset_m.
+  SE3d T_b_i() const;
   void validate() const;
 };
 

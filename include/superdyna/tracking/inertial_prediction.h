@@ -56,7 +56,10 @@ class ImuSampleBuffer {
 };
 
 /// Predicts the body pose at t_ns from the keyframe's state and the samples (which must bracket
-/// [keyframe.t_ns, t_ns]); nullopt otherwise. T_b_i: IMU pose in the body frame.
+/// [keyframe.t_ns, t_ns]); nullopt otherwise. T_b_i: IMU pose in the body frame. The prior's
+/// covariance is the preintegration covariance carried into the body pose (the IMU's rotation in
+/// the body frame, the lever arm through which a rotation error moves the body origin, and the
+/// correlation of rotation and position errors) plus the keyframe state's uncertainty (options).
 std::optional<InertialPrediction> predictFromKeyFrame(const map::KeyFrame& keyframe,
                                                       const std::vector<io::ImuSample>& samples,
                                                       TimeNs t_ns, const SE3d& T_b_i,
