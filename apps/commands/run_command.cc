@@ -55,10 +55,14 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
 }
 
-void printMatchCounts(const system::MatchCounts& m, bool class_wise) {
+void printMatchCounts(const system::System& slam) {
+  const system::MatchCounts& m = slam.timings().matches;
   fmt::print(
-      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class)\n",
-      class_wise ? "on" : "off", m.stereo, m.stereo_cross_class, m.map, m.map_cross_class);
+      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class); "
+      "map points {} ({} cross-class)\n",
+      slam.options().front_end.features.class_wise_matching ? "on" : "off", m.stereo,
+      m.stereo_cross_class, m.map, m.map_cross_class, slam.numMapPoints(),
+      slam.numCrossClassMapPoints());
 }
 
 /// Prints a progress line at most about once a second.
@@ -219,7 +223,7 @@ class RunCommand : public Command {
                  slam.initializingFrames());
     }
     printTimings(slam.options(), t);
-    printMatchCounts(t.matches, options.front_end.features.class_wise_matching);
+    printMatchCounts(slam);
     printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
     // Visual-only monocular trajectories have no metric scale.
     if (options.mode == system::SensorMode::kMono) {

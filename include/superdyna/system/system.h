@@ -53,6 +53,11 @@ struct SystemOptions {
   void validate() const;
 };
 
+/// Copies the one matching option, features.class_wise_matching, to every matcher: stereo,
+/// map-to-frame projection, reference keyframe, monocular initialisation and keyframe-to-keyframe
+/// triangulation (their same_class_only). The System applies it to its options.
+void applyClassWiseMatching(SystemOptions& options);
+
 /// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
 /// `tracker`, `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError
 /// naming file and key.
@@ -132,6 +137,8 @@ class System {
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
+  /// Points of the current map observed by keypoints of different classes (map::Map).
+  std::size_t numCrossClassMapPoints() const;
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return tracker_.inertialInitialized(); }
 
