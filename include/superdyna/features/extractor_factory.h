@@ -51,6 +51,7 @@ struct FeatureOptions {
   std::string modelName() const;
   /// Throws OptionError naming the first invalid field (features.*, orb.*).
   void validate() const;
+  bool operator==(const FeatureOptions&) const = default;
 };
 
 /// The scale pyramid an extractor's keypoints come from: ORB's levels; learned extractors detect

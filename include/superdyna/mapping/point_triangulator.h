@@ -34,6 +34,7 @@ struct PointTriangulatorOptions {
   bool same_class_only = false;
   /// Throws OptionError naming the first invalid field (prefix "mapping.triangulation_").
   void validate() const;
+  bool operator==(const PointTriangulatorOptions&) const = default;
 };
 
 class PointTriangulator {

@@ -35,6 +35,7 @@ struct FrontEndOptions {
   /// Stereo: extract the right image on a helper thread while the left one is extracted.
   bool parallel_extraction = true;
   void validate() const;
+  bool operator==(const FrontEndOptions&) const = default;
 };
 
 /// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,

@@ -52,6 +52,7 @@ struct MonoInitializerOptions {
 
   /// Throws OptionError naming the first invalid field (prefix "mono_init.").
   void validate() const;
+  bool operator==(const MonoInitializerOptions&) const = default;
 };
 
 /// Correspondences between two views in undistorted normalised coordinates, with the keypoint
