@@ -91,7 +91,8 @@ int main(int argc, char** argv) {
   const int step = argc > 4 ? std::atoi(argv[4]) : 10;
   // Projection search variants: the config's own first.
   std::vector<std::pair<std::string, features::ProjectionMatchOptions>> variants;
-  const system::SystemOptions loaded = system::loadSystemOptions(argv[2]);
+  system::SystemOptions loaded = system::loadSystemOptions(argv[2]);
+  system::applyClassWiseMatching(loaded);
   variants.emplace_back("matches", loaded.tracker.projection);
   if (argc > 5) {
     for (const double radius : {15.0, 8.0, 5.0}) {

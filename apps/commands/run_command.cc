@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "commands/output_files.h"
 #include "superdyna/core/error.h"
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
@@ -55,10 +56,14 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
 }
 
-void printMatchCounts(const system::MatchCounts& m, bool class_wise) {
+void printMatchCounts(const system::System& slam) {
+  const system::MatchCounts& m = slam.timings().matches;
   fmt::print(
-      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class)\n",
-      class_wise ? "on" : "off", m.stereo, m.stereo_cross_class, m.map, m.map_cross_class);
+      "matches (class-wise {}): stereo {} ({} cross-class), map-to-frame {} ({} cross-class); "
+      "map points {} ({} cross-class)\n",
+      slam.options().front_end.features.class_wise_matching ? "on" : "off", m.stereo,
+      m.stereo_cross_class, m.map, m.map_cross_class, slam.numMapPoints(),
+      slam.numCrossClassMapPoints());
 }
 
 /// Prints a progress line at most about once a second.
@@ -85,6 +90,17 @@ fs::path defaultKeyFramesPath(const fs::path& output) {
   fs::path path = output;
   path.replace_filename(output.stem().string() + "_keyframes" + output.extension().string());
   return path;
+}
+
+/// <stem>_config.yaml next to the frame trajectory: the effective options of the run.
+fs::path effectiveConfigPath(const fs::path& output) {
+  fs::path path = output;
+  path.replace_filename(output.stem().string() + "_config.yaml");
+  return path;
+}
+
+bool sameFile(const fs::path& a, const fs::path& b) {
+  return fs::weakly_canonical(fs::absolute(a)) == fs::weakly_canonical(fs::absolute(b));
 }
 
 void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::AlignmentMode align) {
@@ -158,10 +174,27 @@ class RunCommand : public Command {
 
   fs::path keyFramesPath() const {
     const fs::path path = keyframes_ ? *keyframes_ : defaultKeyFramesPath(output_);
-    if (fs::weakly_canonical(fs::absolute(path)) == fs::weakly_canonical(fs::absolute(output_))) {
+    if (sameFile(path, output_)) {
       throw OptionError("--keyframes",
                         fmt::format("'{}' is also the --output file", path.string()));
     }
+    return path;
+  }
+
+  /// Where the effective options go: beside --output, never over the dataset, the --config file
+  /// read or another output of the run.
+  fs::path configPath(const fs::path& keyframes_path) const {
+    const fs::path path = effectiveConfigPath(output_);
+    refuseOutputInsideDataset(path, "--output");
+    if (config_) requireDistinctOutput(path, {*config_}, "--output");
+    const auto refuseSame = [&](const fs::path& other, const std::string& option) {
+      if (!sameFile(path, other)) return;
+      throw OptionError(option, fmt::format("'{}' is also the effective options file of the run "
+                                            "(<output stem>_config.yaml)",
+                                            other.string()));
+    };
+    refuseSame(keyframes_path, "--keyframes");
+    if (frame_log_) refuseSame(*frame_log_, "--frame-log");
     return path;
   }
 
@@ -170,6 +203,7 @@ class RunCommand : public Command {
     const fs::path keyframes_path = keyFramesPath();
     refuseOutputInsideDataset(keyframes_path, "--keyframes");
     if (frame_log_) refuseOutputInsideDataset(*frame_log_, "--frame-log");
+    const fs::path config_path = configPath(keyframes_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
@@ -196,6 +230,9 @@ class RunCommand : public Command {
                system::toString(options.mode), features::toString(options.front_end.features.type),
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
                source->size());
+    const std::string effective = system::formatSystemOptions(slam.options());
+    fmt::print("effective options (written to {}):\n{}", config_path.string(), effective);
+    system::writeSystemOptions(config_path, slam.options());
     ProgressLine progress;
     std::optional<system::FrameLog> frame_log;
     if (frame_log_) frame_log.emplace(*frame_log_, "--frame-log");
@@ -219,7 +256,7 @@ class RunCommand : public Command {
                  slam.initializingFrames());
     }
     printTimings(slam.options(), t);
-    printMatchCounts(t.matches, options.front_end.features.class_wise_matching);
+    printMatchCounts(slam);
     printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
     // Visual-only monocular trajectories have no metric scale.
     if (options.mode == system::SensorMode::kMono) {

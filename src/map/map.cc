@@ -409,6 +409,24 @@ std::size_t Map::numMapPoints() const {
   return points_.size();
 }
 
+std::size_t Map::numCrossClassMapPoints() const {
+  const std::lock_guard lock(mutex_);
+  const auto classOf = [&](const std::pair<const KeyFrameId, int>& observation) {
+    const KeyFrame& keyframe = keyframes_.at(observation.first);
+    return keyframe.keypoints[static_cast<std::size_t>(observation.second)].class_id;
+  };
+  std::size_t count = 0;
+  for (const auto& [id, point] : points_) {
+    if (point.bad || point.observations.empty()) continue;
+    const int first = classOf(*point.observations.begin());
+    if (std::any_of(point.observations.begin(), point.observations.end(),
+                    [&](const auto& observation) { return classOf(observation) != first; })) {
+      ++count;
+    }
+  }
+  return count;
+}
+
 bool Map::hasKeyFrame(KeyFrameId id) const {
   const std::lock_guard lock(mutex_);
   return keyframes_.contains(id);

@@ -154,9 +154,11 @@ std::vector<map::MapPointId> PointTriangulator::triangulatePair(map::Map& map, V
     if (!(line_norm > 0.0)) continue;
     BestTwo best;
     const int row_c = static_cast<int>(i);
+    const int class_id = kc.keypoints[i].class_id;
     for (std::size_t j = 0; j < kn.size(); ++j) {
       if (!neighbour.free[j]) continue;
       const map::KeyFrameKeypoint& k = kn.keypoints[j];
+      if (options_.same_class_only && k.class_id != class_id) continue;
       const double sigma = sigmaOf(k.octave);
       const double distance_px =
           focal_px_ * std::abs(line.dot(homogeneous(k.normalized))) / line_norm;

@@ -1,10 +1,15 @@
 // YAML options file of the SLAM system: one map per section, one number, true/false or name per
-// key.
+// key. One table (optionTable) names every key and the field it sets; the reader and the writer
+// both walk it, so a key cannot be known in one direction only.
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
-#include <functional>
-#include <map>
+#include <fstream>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include "superdyna/core/error.h"
 #include "superdyna/io/yaml_file.h"
@@ -14,195 +19,257 @@ namespace superdyna::system {
 
 namespace {
 
-using Setter = std::function<void(const io::YamlFile&, const YAML::Node&, const std::string&)>;
-using Section = std::map<std::string, Setter>;
+/// The field of SystemOptions one key sets; its type says how the value is read and written.
+using Field = std::variant<double*, int*, bool*, std::string*, features::FeatureType*>;
 
-Setter doubleSetter(double& target) {
-  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
-    target = file.number(node, field);
-  };
+struct Key {
+  const char* name;
+  Field field;
+};
+
+struct Section {
+  const char* name;
+  std::vector<Key> keys;
+};
+
+template <class... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+template <class... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+int readInteger(const io::YamlFile& file, const YAML::Node& node, const std::string& name) {
+  const double value = file.number(node, name);
+  if (value != std::round(value) || std::abs(value) > 1e9) {
+    throw InputError(file.at(node, name), "expected an integer");
+  }
+  return static_cast<int>(value);
 }
 
-Setter intSetter(int& target) {
-  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
-    const double value = file.number(node, field);
-    if (value != std::round(value) || std::abs(value) > 1e9) {
-      throw InputError(file.at(node, field), "expected an integer");
+bool readBool(const io::YamlFile& file, const YAML::Node& node, const std::string& name) {
+  const std::string value = file.scalar(node, name);
+  if (value != "true" && value != "false") {
+    throw InputError(file.at(node, name), "expected true or false");
+  }
+  return value == "true";
+}
+
+features::FeatureType readFeatureType(const io::YamlFile& file, const YAML::Node& node,
+                                      const std::string& name) {
+  const std::string value = file.scalar(node, name);
+  try {
+    return features::parseFeatureType(value, name);
+  } catch (const OptionError&) {
+    throw InputError(file.at(node, name), "expected orb, xfeat or superpoint, got '" + value + "'");
+  }
+}
+
+/// Sets `field` from the value `node` of the key `name` ("section.key", for messages).
+void read(const io::YamlFile& file, const YAML::Node& node, const std::string& name, Field field) {
+  std::visit(
+      Overloaded{
+          [&](double* target) { *target = file.number(node, name); },
+          [&](int* target) { *target = readInteger(file, node, name); },
+          [&](bool* target) { *target = readBool(file, node, name); },
+          [&](std::string* target) { *target = file.scalar(node, name); },
+          [&](features::FeatureType* target) { *target = readFeatureType(file, node, name); },
+      },
+      field);
+}
+
+/// A YAML double-quoted scalar holding `text` exactly.
+std::string quoted(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      out += fmt::format("\\x{:02x}", static_cast<unsigned char>(c));
+    } else {
+      out += c;
     }
-    target = static_cast<int>(value);
-  };
+  }
+  return out + '"';
 }
 
-Setter boolSetter(bool& target) {
-  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
-    const std::string value = file.scalar(node, field);
-    if (value != "true" && value != "false") {
-      throw InputError(file.at(node, field), "expected true or false");
-    }
-    target = value == "true";
-  };
+/// The shortest decimal text that reads back as `value` exactly, with ".0" on whole numbers so
+/// that they read as the real numbers they are.
+std::string formatDouble(double value) {
+  std::string text = fmt::format("{}", value);
+  if (text.find_first_not_of("-0123456789") == std::string::npos) text += ".0";
+  return text;
 }
 
-Setter stringSetter(std::string& target) {
-  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
-    target = file.scalar(node, field);
-  };
+/// The value of `field` as read() reads it back: numbers in their shortest exact form.
+std::string format(Field field) {
+  return std::visit(
+      Overloaded{
+          [](const double* value) { return formatDouble(*value); },
+          [](const int* value) { return fmt::format("{}", *value); },
+          [](const bool* value) { return std::string(*value ? "true" : "false"); },
+          [](const std::string* value) { return quoted(*value); },
+          [](const features::FeatureType* value) { return features::toString(*value); },
+      },
+      field);
 }
 
-Setter featureTypeSetter(features::FeatureType& target) {
-  return [&target](const io::YamlFile& file, const YAML::Node& node, const std::string& field) {
-    const std::string value = file.scalar(node, field);
-    try {
-      target = features::parseFeatureType(value, field);
-    } catch (const OptionError&) {
-      throw InputError(file.at(node, field),
-                       "expected orb, xfeat or superpoint, got '" + value + "'");
-    }
-  };
-}
-
-std::map<std::string, Section> sectionsOf(SystemOptions& o) {
+/// Every key of the options file, section by section, in the order written.
+std::vector<Section> optionTable(SystemOptions& o) {
   auto& t = o.tracker;
   auto& f = o.front_end;
   return {
       {"features",
-       {{"type", featureTypeSetter(f.features.type)},
-        {"model", stringSetter(f.features.model)},
-        {"max_keypoints", intSetter(f.features.max_keypoints)},
-        {"detection_threshold", doubleSetter(f.features.detection_threshold)},
-        {"nms_radius_px", intSetter(f.features.nms_radius_px)},
-        {"grid_cell_px", intSetter(f.features.grid_cell_px)},
-        {"subpixel_radius_px", intSetter(f.features.subpixel_radius_px)},
-        {"inference_threads", intSetter(f.features.inference_threads)},
-        {"class_wise_matching", boolSetter(f.features.class_wise_matching)},
-        {"parallel_extraction", boolSetter(f.parallel_extraction)}}},
+       {{"type", &f.features.type},
+        {"model", &f.features.model},
+        {"max_keypoints", &f.features.max_keypoints},
+        {"detection_threshold", &f.features.detection_threshold},
+        {"nms_radius_px", &f.features.nms_radius_px},
+        {"grid_cell_px", &f.features.grid_cell_px},
+        {"subpixel_radius_px", &f.features.subpixel_radius_px},
+        {"inference_threads", &f.features.inference_threads},
+        {"class_wise_matching", &f.features.class_wise_matching},
+        {"parallel_extraction", &f.parallel_extraction}}},
       {"orb",
-       {{"features", intSetter(f.features.orb.features)},
-        {"scale_factor", doubleSetter(f.features.orb.scale_factor)},
-        {"levels", intSetter(f.features.orb.levels)},
-        {"fast_threshold", intSetter(f.features.orb.fast_threshold)},
-        {"min_fast_threshold", intSetter(f.features.orb.min_fast_threshold)},
-        {"cell_size", intSetter(f.features.orb.cell_size)},
-        {"edge_threshold", intSetter(f.features.orb.edge_threshold)},
-        {"blur_sigma", doubleSetter(f.features.orb.blur_sigma)}}},
+       {{"features", &f.features.orb.features},
+        {"scale_factor", &f.features.orb.scale_factor},
+        {"levels", &f.features.orb.levels},
+        {"fast_threshold", &f.features.orb.fast_threshold},
+        {"min_fast_threshold", &f.features.orb.min_fast_threshold},
+        {"cell_size", &f.features.orb.cell_size},
+        {"edge_threshold", &f.features.orb.edge_threshold},
+        {"blur_sigma", &f.features.orb.blur_sigma}}},
       {"stereo",
-       {{"max_epipolar_error_px", doubleSetter(f.stereo.max_epipolar_error_px)},
-        {"max_distance", intSetter(f.stereo.max_distance)},
-        {"max_l2_distance", doubleSetter(f.stereo.max_l2_distance)},
-        {"ratio", doubleSetter(f.stereo.ratio)},
-        {"max_octave_difference", intSetter(f.stereo.max_octave_difference)},
-        {"max_angle_difference_deg", doubleSetter(f.stereo.max_angle_difference_deg)},
-        {"min_depth_m", doubleSetter(f.stereo.min_depth_m)},
-        {"max_depth_m", doubleSetter(f.stereo.max_depth_m)}}},
+       {{"max_epipolar_error_px", &f.stereo.max_epipolar_error_px},
+        {"max_distance", &f.stereo.max_distance},
+        {"max_l2_distance", &f.stereo.max_l2_distance},
+        {"ratio", &f.stereo.ratio},
+        {"max_octave_difference", &f.stereo.max_octave_difference},
+        {"max_angle_difference_deg", &f.stereo.max_angle_difference_deg},
+        {"min_depth_m", &f.stereo.min_depth_m},
+        {"max_depth_m", &f.stereo.max_depth_m}}},
       {"projection",
-       {{"radius_px", doubleSetter(t.projection.radius_px)},
-        {"max_distance", intSetter(t.projection.max_distance)},
-        {"max_l2_distance", doubleSetter(t.projection.max_l2_distance)},
-        {"ratio", doubleSetter(t.projection.ratio)},
-        {"max_octave_difference", intSetter(t.projection.max_octave_difference)},
-        {"check_orientation", boolSetter(t.projection.check_orientation)}}},
+       {{"radius_px", &t.projection.radius_px},
+        {"max_distance", &t.projection.max_distance},
+        {"max_l2_distance", &t.projection.max_l2_distance},
+        {"ratio", &t.projection.ratio},
+        {"max_octave_difference", &t.projection.max_octave_difference},
+        {"check_orientation", &t.projection.check_orientation}}},
       {"pose",
-       {{"rounds", intSetter(t.pose.rounds)},
-        {"iterations_per_round", intSetter(t.pose.iterations_per_round)},
-        {"robust_rounds", intSetter(t.pose.robust_rounds)},
-        {"sigma0_px", doubleSetter(t.pose.sigma0_px)},
-        {"chi2_mono", doubleSetter(t.pose.chi2_mono)},
-        {"min_inliers", intSetter(t.pose.min_inliers)}}},
+       {{"rounds", &t.pose.rounds},
+        {"iterations_per_round", &t.pose.iterations_per_round},
+        {"robust_rounds", &t.pose.robust_rounds},
+        {"sigma0_px", &t.pose.sigma0_px},
+        {"chi2_mono", &t.pose.chi2_mono},
+        {"min_inliers", &t.pose.min_inliers}}},
       {"tracker",
-       {{"wide_radius_px", doubleSetter(t.wide_radius_px)},
-        {"min_projection_matches", intSetter(t.min_projection_matches)},
-        {"refine_radius_px", doubleSetter(t.refine_radius_px)},
-        {"min_inliers", intSetter(t.min_inliers)},
-        {"local_keyframes", intSetter(t.local_keyframes)},
-        {"keyframe_tracked_ratio", doubleSetter(t.keyframe_tracked_ratio)},
-        {"keyframe_max_interval_s", doubleSetter(t.keyframe_max_interval_s)},
-        {"keyframe_min_tracked", intSetter(t.keyframe_min_tracked)},
-        {"keyframe_min_interval_s", doubleSetter(t.keyframe_min_interval_s)},
-        {"keyframe_weak_inliers", intSetter(t.keyframe_weak_inliers)},
-        {"mono_wait_for_mapping", boolSetter(t.mono_wait_for_mapping)},
-        {"mono_inertial_wait_for_keyframe_ba", boolSetter(t.mono_inertial_wait_for_keyframe_ba)},
-        {"keyframe_min_stereo", intSetter(t.keyframe_min_stereo)},
-        {"close_depth_baselines", doubleSetter(t.close_depth_baselines)},
-        {"min_new_points", intSetter(t.min_new_points)},
-        {"stereo_pose_observations", boolSetter(t.stereo_pose_observations)},
-        {"imu_translation_prediction", boolSetter(t.imu_translation_prediction)},
-        {"imu_rotation_prior_sigma_deg", doubleSetter(t.imu_rotation_prior_sigma_deg)},
-        {"imu_min_keyframe_interval_s", doubleSetter(t.imu_min_keyframe_interval_s)},
-        {"imu_bridge_s", doubleSetter(t.imu_bridge_s)},
-        {"viewing_limits", boolSetter(t.viewing_limits)},
-        {"reference_matching", boolSetter(t.reference_matching.enabled)},
-        {"reference_max_distance", intSetter(t.reference_matching.matching.max_distance)},
-        {"reference_max_l2_distance", doubleSetter(t.reference_matching.matching.max_l2_distance)},
-        {"reference_ratio", doubleSetter(t.reference_matching.matching.ratio)},
-        {"reference_ransac_threshold_px", doubleSetter(t.reference_matching.ransac_threshold_px)},
-        {"reference_search_radius_px", doubleSetter(t.reference_matching.search_radius_px)},
-        {"reference_min_inliers", intSetter(t.reference_matching.min_inliers)},
-        {"imu_prior_velocity_sigma", doubleSetter(t.imu_prior.velocity_sigma)},
-        {"imu_prior_position_sigma_m", doubleSetter(t.imu_prior.position_sigma_m)},
-        {"imu_prior_rotation_sigma_deg", doubleSetter(t.imu_prior.rotation_sigma_deg)}}},
+       {{"wide_radius_px", &t.wide_radius_px},
+        {"min_projection_matches", &t.min_projection_matches},
+        {"refine_radius_px", &t.refine_radius_px},
+        {"min_inliers", &t.min_inliers},
+        {"local_keyframes", &t.local_keyframes},
+        {"keyframe_tracked_ratio", &t.keyframe_tracked_ratio},
+        {"keyframe_max_interval_s", &t.keyframe_max_interval_s},
+        {"keyframe_min_tracked", &t.keyframe_min_tracked},
+        {"keyframe_min_interval_s", &t.keyframe_min_interval_s},
+        {"keyframe_weak_inliers", &t.keyframe_weak_inliers},
+        {"mono_wait_for_mapping", &t.mono_wait_for_mapping},
+        {"mono_inertial_wait_for_keyframe_ba", &t.mono_inertial_wait_for_keyframe_ba},
+        {"keyframe_min_stereo", &t.keyframe_min_stereo},
+        {"close_depth_baselines", &t.close_depth_baselines},
+        {"min_new_points", &t.min_new_points},
+        {"stereo_pose_observations", &t.stereo_pose_observations},
+        {"imu_translation_prediction", &t.imu_translation_prediction},
+        {"imu_rotation_prior_sigma_deg", &t.imu_rotation_prior_sigma_deg},
+        {"imu_min_keyframe_interval_s", &t.imu_min_keyframe_interval_s},
+        {"imu_bridge_s", &t.imu_bridge_s},
+        {"viewing_limits", &t.viewing_limits},
+        {"reference_matching", &t.reference_matching.enabled},
+        {"reference_max_distance", &t.reference_matching.matching.max_distance},
+        {"reference_max_l2_distance", &t.reference_matching.matching.max_l2_distance},
+        {"reference_ratio", &t.reference_matching.matching.ratio},
+        {"reference_ransac_threshold_px", &t.reference_matching.ransac_threshold_px},
+        {"reference_search_radius_px", &t.reference_matching.search_radius_px},
+        {"reference_min_inliers", &t.reference_matching.min_inliers},
+        {"imu_prior_velocity_sigma", &t.imu_prior.velocity_sigma},
+        {"imu_prior_position_sigma_m", &t.imu_prior.position_sigma_m},
+        {"imu_prior_rotation_sigma_deg", &t.imu_prior.rotation_sigma_deg}}},
       {"mono_init",
-       {{"min_features", intSetter(t.mono_init.min_features)},
-        {"min_matches", intSetter(t.mono_init.min_matches)},
-        {"search_radius_px", doubleSetter(t.mono_init.search_radius_px)},
-        {"max_distance", intSetter(t.mono_init.max_distance)},
-        {"max_l2_distance", doubleSetter(t.mono_init.max_l2_distance)},
-        {"ratio", doubleSetter(t.mono_init.ratio)},
-        {"ransac_threshold_px", doubleSetter(t.mono_init.ransac_threshold_px)},
-        {"min_parallax_deg", doubleSetter(t.mono_init.min_parallax_deg)},
-        {"min_triangulated", intSetter(t.mono_init.min_triangulated)},
-        {"ambiguity_ratio", doubleSetter(t.mono_init.ambiguity_ratio)},
-        {"homography_score_ratio", doubleSetter(t.mono_init.homography_score_ratio)},
-        {"max_reference_age_s", doubleSetter(t.mono_init.max_reference_age_s)}}},
+       {{"min_features", &t.mono_init.min_features},
+        {"min_matches", &t.mono_init.min_matches},
+        {"search_radius_px", &t.mono_init.search_radius_px},
+        {"max_distance", &t.mono_init.max_distance},
+        {"max_l2_distance", &t.mono_init.max_l2_distance},
+        {"ratio", &t.mono_init.ratio},
+        {"ransac_threshold_px", &t.mono_init.ransac_threshold_px},
+        {"min_parallax_deg", &t.mono_init.min_parallax_deg},
+        {"min_triangulated", &t.mono_init.min_triangulated},
+        {"ambiguity_ratio", &t.mono_init.ambiguity_ratio},
+        {"homography_score_ratio", &t.mono_init.homography_score_ratio},
+        {"max_reference_age_s", &t.mono_init.max_reference_age_s}}},
       {"mapping",
-       {{"window_keyframes", intSetter(o.mapping.window_keyframes)},
-        {"fixed_observer_keyframes", intSetter(o.mapping.fixed_observer_keyframes)},
-        {"iterations", intSetter(o.mapping.iterations)},
-        {"chi2_outlier", doubleSetter(o.mapping.chi2_outlier)},
-        {"cull_after_keyframes", intSetter(o.mapping.cull_after_keyframes)},
-        {"min_observations", intSetter(o.mapping.min_observations)},
-        {"min_found_ratio", doubleSetter(o.mapping.min_found_ratio)},
-        {"sigma0_px", doubleSetter(o.mapping.sigma0_px)},
-        {"triangulate", boolSetter(o.mapping.triangulate)},
-        {"triangulation_neighbours", intSetter(o.mapping.triangulation.neighbours)},
-        {"triangulation_max_distance", intSetter(o.mapping.triangulation.max_distance)},
-        {"triangulation_max_l2_distance", doubleSetter(o.mapping.triangulation.max_l2_distance)},
-        {"triangulation_ratio", doubleSetter(o.mapping.triangulation.ratio)},
+       {{"window_keyframes", &o.mapping.window_keyframes},
+        {"fixed_observer_keyframes", &o.mapping.fixed_observer_keyframes},
+        {"iterations", &o.mapping.iterations},
+        {"chi2_outlier", &o.mapping.chi2_outlier},
+        {"cull_after_keyframes", &o.mapping.cull_after_keyframes},
+        {"min_observations", &o.mapping.min_observations},
+        {"min_found_ratio", &o.mapping.min_found_ratio},
+        {"sigma0_px", &o.mapping.sigma0_px},
+        {"triangulate", &o.mapping.triangulate},
+        {"triangulation_neighbours", &o.mapping.triangulation.neighbours},
+        {"triangulation_max_distance", &o.mapping.triangulation.max_distance},
+        {"triangulation_max_l2_distance", &o.mapping.triangulation.max_l2_distance},
+        {"triangulation_ratio", &o.mapping.triangulation.ratio},
         {"triangulation_min_baseline_depth_ratio",
-         doubleSetter(o.mapping.triangulation.min_baseline_depth_ratio)},
-        {"fusion", boolSetter(o.mapping.fusion.enabled)},
-        {"fusion_neighbours", intSetter(o.mapping.fusion.neighbours)},
-        {"fusion_second_neighbours", intSetter(o.mapping.fusion.second_neighbours)},
-        {"fusion_radius_px", doubleSetter(o.mapping.fusion.radius_px)},
-        {"fusion_max_distance", intSetter(o.mapping.fusion.max_distance)},
-        {"fusion_max_l2_distance", doubleSetter(o.mapping.fusion.max_l2_distance)},
-        {"cull_keyframes", boolSetter(o.mapping.keyframe_culling.enabled)},
-        {"cull_redundancy", doubleSetter(o.mapping.keyframe_culling.redundancy)},
-        {"cull_min_observers", intSetter(o.mapping.keyframe_culling.min_observers)},
-        {"cull_max_gap_s", doubleSetter(o.mapping.keyframe_culling.max_gap_s)},
-        {"cull_max_gap_inertial_s", doubleSetter(o.mapping.keyframe_culling.max_gap_inertial_s)},
-        {"inertial", boolSetter(o.mapping.inertial)},
-        {"inertial_init_min_keyframes", intSetter(o.mapping.inertial_init.min_keyframes)},
-        {"inertial_init_min_duration_s", doubleSetter(o.mapping.inertial_init.min_duration_s)},
-        {"refine_first_s", doubleSetter(o.mapping.refine_first_s)},
-        {"refine_second_s", doubleSetter(o.mapping.refine_second_s)},
-        {"full_ba_iterations", intSetter(o.mapping.full_ba_iterations)},
-        {"inertial_window_keyframes", intSetter(o.mapping.inertial_window_keyframes)},
-        {"inertial_fixed_covisible", intSetter(o.mapping.inertial_fixed_covisible)},
-        {"inertial_iterations", intSetter(o.mapping.inertial_iterations)}}},
+         &o.mapping.triangulation.min_baseline_depth_ratio},
+        {"fusion", &o.mapping.fusion.enabled},
+        {"fusion_neighbours", &o.mapping.fusion.neighbours},
+        {"fusion_second_neighbours", &o.mapping.fusion.second_neighbours},
+        {"fusion_radius_px", &o.mapping.fusion.radius_px},
+        {"fusion_max_distance", &o.mapping.fusion.max_distance},
+        {"fusion_max_l2_distance", &o.mapping.fusion.max_l2_distance},
+        {"cull_keyframes", &o.mapping.keyframe_culling.enabled},
+        {"cull_redundancy", &o.mapping.keyframe_culling.redundancy},
+        {"cull_min_observers", &o.mapping.keyframe_culling.min_observers},
+        {"cull_max_gap_s", &o.mapping.keyframe_culling.max_gap_s},
+        {"cull_max_gap_inertial_s", &o.mapping.keyframe_culling.max_gap_inertial_s},
+        {"inertial", &o.mapping.inertial},
+        {"inertial_init_min_keyframes", &o.mapping.inertial_init.min_keyframes},
+        {"inertial_init_min_duration_s", &o.mapping.inertial_init.min_duration_s},
+        {"refine_first_s", &o.mapping.refine_first_s},
+        {"refine_second_s", &o.mapping.refine_second_s},
+        {"full_ba_iterations", &o.mapping.full_ba_iterations},
+        {"inertial_window_keyframes", &o.mapping.inertial_window_keyframes},
+        {"inertial_fixed_covisible", &o.mapping.inertial_fixed_covisible},
+        {"inertial_iterations", &o.mapping.inertial_iterations}}},
+      {"pipeline", {{"frame_queue", &o.frame_queue}, {"mapping_queue", &o.mapping_queue}}},
   };
 }
 
-void applySection(const io::YamlFile& file, const std::string& name, const YAML::Node& node,
-                  const Section& section) {
+const Key* findKey(const Section& section, const std::string& name) {
+  const auto key = std::find_if(section.keys.begin(), section.keys.end(),
+                                [&](const Key& k) { return name == k.name; });
+  return key == section.keys.end() ? nullptr : &*key;
+}
+
+const Section* findSection(const std::vector<Section>& table, const std::string& name) {
+  const auto section =
+      std::find_if(table.begin(), table.end(), [&](const Section& s) { return name == s.name; });
+  return section == table.end() ? nullptr : &*section;
+}
+
+void readSection(const io::YamlFile& file, const std::string& name, const YAML::Node& node,
+                 const Section& section) {
   if (!node.IsMap()) throw InputError(file.at(node, name), "expected a map of options");
   for (const auto& entry : node) {
-    const std::string key = entry.first.Scalar();
-    const std::string field = name + "." + key;
-    const auto setter = section.find(key);
-    if (setter == section.end()) {
+    const std::string field = name + "." + entry.first.Scalar();
+    const Key* key = findKey(section, entry.first.Scalar());
+    if (key == nullptr) {
       throw InputError(file.at(entry.first, field), "unknown key '" + field + "'");
     }
-    setter->second(file, entry.second, field);
+    read(file, entry.second, field, key->field);
   }
 }
 
@@ -213,14 +280,14 @@ SystemOptions loadSystemOptions(const std::filesystem::path& path, SystemOptions
   const YAML::Node& root = file.root();
   if (root.IsNull()) return defaults;
   if (!root.IsMap()) throw InputError(file.at(root, ""), "expected a map of option sections");
-  const std::map<std::string, Section> sections = sectionsOf(defaults);
+  const std::vector<Section> table = optionTable(defaults);
   for (const auto& entry : root) {
     const std::string name = entry.first.Scalar();
-    const auto section = sections.find(name);
-    if (section == sections.end()) {
+    const Section* section = findSection(table, name);
+    if (section == nullptr) {
       throw InputError(file.at(entry.first, name), "unknown section '" + name + "'");
     }
-    applySection(file, name, entry.second, section->second);
+    readSection(file, name, entry.second, *section);
   }
   try {
     defaults.validate();
@@ -228,6 +295,29 @@ SystemOptions loadSystemOptions(const std::filesystem::path& path, SystemOptions
     throw InputError(InputLocation{path}, e.what());
   }
   return defaults;
+}
+
+std::string formatSystemOptions(const SystemOptions& options) {
+  SystemOptions copy = options;  // the table points into it; nothing is changed
+  std::string text = fmt::format(
+      "# superdyna options: every key of every section (loadSystemOptions reads them back).\n"
+      "# Given on the command line, not keys of this file: --mode {}{}\n",
+      toString(options.mode), options.deterministic ? " --deterministic" : "");
+  for (const Section& section : optionTable(copy)) {
+    text += fmt::format("{}:\n", section.name);
+    for (const Key& key : section.keys)
+      text += fmt::format("  {}: {}\n", key.name, format(key.field));
+  }
+  return text;
+}
+
+void writeSystemOptions(const std::filesystem::path& path, const SystemOptions& options) {
+  const std::string text = formatSystemOptions(options);
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw InputError(InputLocation{path}, "cannot open file for writing");
+  out << text;
+  out.close();
+  if (!out) throw InputError(InputLocation{path}, "write failed");
 }
 
 }  // namespace superdyna::system

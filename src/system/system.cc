@@ -52,6 +52,16 @@ void SystemOptions::validate() const {
   if (mapping_queue < 1) throw OptionError("mapping_queue", "must be >= 1");
 }
 
+void applyClassWiseMatching(SystemOptions& options) {
+  const bool class_wise = options.front_end.features.class_wise_matching;
+  options.front_end.stereo.same_class_only = class_wise;
+  options.tracker.projection.same_class_only = class_wise;
+  options.tracker.reference_matching.matching.same_class_only = class_wise;
+  options.tracker.mono_init.same_class_only = class_wise;
+  options.mapping.triangulation.same_class_only = class_wise;
+  options.mapping.fusion.same_class_only = class_wise;
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -64,10 +74,7 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
-  options.tracker.projection.same_class_only = options.front_end.features.class_wise_matching;
-  options.tracker.reference_matching.matching.same_class_only =
-      options.front_end.features.class_wise_matching;
-  options.mapping.fusion.same_class_only = options.front_end.features.class_wise_matching;
+  applyClassWiseMatching(options);
   options.validate();
   return options;
 }
@@ -256,6 +263,10 @@ std::size_t System::numKeyFrames() const {
 
 std::size_t System::numMapPoints() const {
   return tracker_.hasMap() ? tracker_.map().numMapPoints() : 0;
+}
+
+std::size_t System::numCrossClassMapPoints() const {
+  return tracker_.hasMap() ? tracker_.map().numCrossClassMapPoints() : 0;
 }
 
 }  // namespace superdyna::system

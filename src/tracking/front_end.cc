@@ -63,9 +63,7 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& 
   left_extractor_ = features::makeExtractor(options.features);
   if (cam1) {
     right_extractor_ = features::makeExtractor(options.features);
-    features::StereoMatchOptions stereo = options.stereo;
-    stereo.same_class_only = options.features.class_wise_matching;
-    stereo_matcher_.emplace(cam0, *cam1, stereo);
+    stereo_matcher_.emplace(cam0, *cam1, options.stereo);
     if (options.parallel_extraction) helper_ = std::make_unique<TaskThread>();
   }
 }

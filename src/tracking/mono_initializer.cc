@@ -320,6 +320,7 @@ std::vector<features::Match> MonoInitializer::matchToReference(const Frame& fram
   window.max_l2_distance = options_.max_l2_distance;
   window.ratio = options_.ratio;
   window.check_orientation = true;
+  window.same_class_only = options_.same_class_only;
   const features::KeypointGrid grid(frame.features.keypoints, frame.features.image_size);
   std::vector<features::Match> usable;
   for (const features::Match& m :

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# End-to-end checks of `superdyna eval`, `superdyna demo`, `superdyna info` and `run`'s output guard:
+# End-to-end checks of `superdyna eval`, `superdyna demo`, `superdyna info` and `run`'s outputs:
 #  1. ATE / RPE from the CLI equal an independent numpy computation (scripts/reference_eval.py)
 #     to 1e-6 relative, for SE(3) and Sim(3) alignment, on a generated flight and (when
 #     ../shared is present) on a real EuRoC ground truth with a simulated drifting estimate;
 #  2. bad input stops with exit code 2 and a message naming the file and line;
-#  3. an output path equal to an input is refused and the input left intact.
+#  3. an output path equal to an input is refused and the input left intact;
+#  4. `run` writes its effective options, and reloading them reproduces the run byte for byte.
 # Usage: eval_cli_test.sh SUPERDYNA PYTHON REPO_DIR SHARED_DIR ($SUPERDYNA_SHARED_DIR overrides it)
 # A missing ../shared part is left out with a message, or fails the test when
 # $SUPERDYNA_REQUIRE_SHARED is 1 (CI), as in the C++ tests (tests/support/test_support.h).
@@ -84,4 +85,19 @@ cp "$gt_csv" "$work/gt_copy.csv"
 expect_failure "is a file of the dataset; refusing to overwrite it" \
   "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo --output "$gt_csv"
 cmp -s "$gt_csv" "$work/gt_copy.csv" || { echo "dataset file was modified"; exit 1; }
+# `run` prints and writes its effective options; reloaded, they reproduce the run bit for bit.
+"$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial --deterministic \
+  --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$work/a.txt" \
+  | tee "$work/run_a.txt"
+grep -q "^effective options (written to $work/a_config.yaml):" "$work/run_a.txt" ||
+  { echo "run did not print its effective options"; exit 1; }
+"$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial --deterministic \
+  --config "$work/a_config.yaml" --output "$work/b.txt" >/dev/null
+cmp "$work/a.txt" "$work/b.txt" || { echo "reloaded options changed the trajectory"; exit 1; }
+cmp "$work/a_config.yaml" "$work/b_config.yaml" || { echo "reloaded options differ"; exit 1; }
+cp "$work/a_config.yaml" "$work/a_config_copy.yaml"
+expect_failure "is an input file; refusing to overwrite it" \
+  "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial \
+  --config "$work/a_config.yaml" --output "$work/a.txt"
+cmp -s "$work/a_config.yaml" "$work/a_config_copy.yaml" || { echo "--config was modified"; exit 1; }
 echo "CLI checks passed"

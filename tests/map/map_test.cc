@@ -50,6 +50,26 @@ class ThreeKeyFrameMap : public ::testing::Test {
   MapPointId p[10] = {};
 };
 
+TEST(Map, CountsPointsObservedByKeypointsOfDifferentClasses) {
+  Map map;
+  KeyFrame labelled = makeKeyFrame(3);
+  labelled.keypoints[1].class_id = 1;  // a vehicle
+  labelled.keypoints[2].class_id = 1;
+  const KeyFrameId a = map.addKeyFrame(makeKeyFrame(3));  // all background
+  const KeyFrameId b = map.addKeyFrame(std::move(labelled));
+  MapPointId p[3];
+  for (int i = 0; i < 3; ++i)
+    p[i] = map.addMapPoint(makePoint(Eigen::Vector3d(i, 0, 5)));
+  map.addObservation(p[0], a, 0);  // background in both
+  map.addObservation(p[0], b, 0);
+  map.addObservation(p[1], a, 1);  // background and vehicle
+  map.addObservation(p[1], b, 1);
+  map.addObservation(p[2], b, 2);  // a vehicle seen once
+  EXPECT_EQ(map.numCrossClassMapPoints(), 1u);
+  map.setMapPointBad(p[1]);
+  EXPECT_EQ(map.numCrossClassMapPoints(), 0u);
+}
+
 TEST_F(ThreeKeyFrameMap, ObservationsAreMirroredAndWeightsCountSharedPoints) {
   EXPECT_EQ(map.consistencyError(), "");
   const KeyFrame kf1 = *map.keyFrame(kf[1]);

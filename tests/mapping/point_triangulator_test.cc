@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <iostream>
 #include <opencv2/core.hpp>
 #include <random>
 
 #include "superdyna/core/error.h"
+#include "superdyna/features/feature_set.h"
 #include "support/test_support.h"
 
 namespace superdyna::mapping {
@@ -54,6 +56,7 @@ class TwoKeyFrameScene : public ::testing::Test {
         const int i = k == 0 ? j : n - 1 - j;
         const Eigen::Vector3d p_c = poses[k].inverse() * points[static_cast<std::size_t>(i)];
         map::KeyFrameKeypoint keypoint;
+        keypoint.class_id = classOf(k, i);
         keypoint.normalized = p_c.head<2>() / p_c.z();
         keypoint.pixel = kFocalPx * keypoint.normalized + Eigen::Vector2d(376, 240);
         kf.keypoints.push_back(keypoint);
@@ -82,6 +85,8 @@ class TwoKeyFrameScene : public ::testing::Test {
   virtual bool floatDescriptors() const { return false; }
   /// Changes keyframe k (0 or 1) before it enters the map.
   virtual void editKeyFrame(int /*k*/, map::KeyFrame& /*kf*/) const {}
+  /// The class_id of point i's keypoint in keyframe k.
+  virtual int classOf(int /*keyframe*/, int /*point*/) const { return features::kClassBackground; }
 
   optim::ReprojectionCamera camera() const {
     optim::ReprojectionCamera c;
@@ -179,6 +184,61 @@ TEST_F(TwoKeyFrameFloatScene, TheEuclideanBoundRejectsDistantDescriptors) {
   PointTriangulatorOptions options;
   options.max_l2_distance = 0.05;  // below the views' descriptor differences
   EXPECT_EQ(PointTriangulator(options, camera()).createPoints(map, ids[1]).size(), 0u);
+}
+
+/// Every third free point is a vehicle in both keyframes; every other free point is a vehicle in
+/// keyframe 0 but background in keyframe 1 (a mislabelled or occluding edge): its descriptor twin
+/// lies in another class.
+class TwoKeyFrameLabelledScene : public TwoKeyFrameScene {
+ protected:
+  int classOf(int keyframe, int point) const override {
+    if (point < kShared) return features::kClassBackground;
+    if (point % 3 == 0) return features::kClassVehicle;
+    if (crossesClasses(point) && keyframe == 0) return features::kClassVehicle;
+    return features::kClassBackground;
+  }
+  static bool crossesClasses(int point) {
+    return point >= kShared && point % 3 != 0 && point % 2 == 0;
+  }
+  /// Free points whose two keypoints carry different classes.
+  static std::size_t crossClassFree() {
+    std::size_t count = 0;
+    for (int i = kShared; i < kShared + kFree; ++i)
+      if (crossesClasses(i)) ++count;
+    return count;
+  }
+};
+
+TEST_F(TwoKeyFrameLabelledScene, ClassWiseMatchingRefusesCrossClassPairs) {
+  PointTriangulatorOptions options;
+  options.same_class_only = false;
+  const std::size_t blind = PointTriangulator(options, camera()).createPoints(map, ids[1]).size();
+  const std::size_t blind_cross = map.numCrossClassMapPoints();
+  std::cout << "triangulation, class-blind: " << blind << " points, " << blind_cross
+            << " cross-class\n";
+  EXPECT_EQ(blind, static_cast<std::size_t>(kFree));  // every pair has parallax enough here
+  EXPECT_EQ(blind_cross, crossClassFree());
+}
+
+TEST_F(TwoKeyFrameLabelledScene, ClassWiseMatchingTriangulatesOnlyWithinAClass) {
+  PointTriangulatorOptions options;
+  options.same_class_only = true;
+  const std::vector<map::MapPointId> created =
+      PointTriangulator(options, camera()).createPoints(map, ids[1]);
+  std::cout << "triangulation, class-wise: " << created.size() << " points, "
+            << map.numCrossClassMapPoints() << " cross-class\n";
+  EXPECT_EQ(map.numCrossClassMapPoints(), 0u);
+  int vehicles = 0;
+  for (const map::MapPointId id : created) {
+    const auto point = map.mapPoint(id);
+    ASSERT_TRUE(point);
+    const int index0 = point->observations.at(ids[0]);
+    EXPECT_FALSE(crossesClasses(index0)) << "point " << index0 << " crosses classes";
+    if (point->class_id == features::kClassVehicle) ++vehicles;
+  }
+  // Every other free point is still triangulated, the same-class vehicles among them.
+  EXPECT_EQ(created.size(), kFree - crossClassFree());
+  EXPECT_GT(vehicles, 60);
 }
 
 TEST_F(TwoKeyFrameScene, SkipsNeighboursWithoutBaseline) {

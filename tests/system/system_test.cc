@@ -38,6 +38,8 @@ struct RunSummary {
   bool inertial_initialized = false;
   MatchCounts matches;
   std::size_t initializing = 0;  ///< Monocular: frames spent initialising maps.
+  std::size_t map_points = 0;    ///< Of the final map.
+  std::size_t cross_class_map_points = 0;
 };
 
 RunSummary runSlam(const fs::path& path, SensorMode mode, SystemOptions options = {},
@@ -49,9 +51,11 @@ RunSummary runSlam(const fs::path& path, SensorMode mode, SystemOptions options 
   System slam(options, source->camera0(), source->camera1(), source->imu());
   while (const auto frame = source->next())
     slam.process(*frame);
-  return {slam.trajectory(),      source->groundTruth(),    slam.lostFrames(),
-          slam.resets(),          slam.timings().frames,    slam.inertialInitialized(),
-          slam.timings().matches, slam.initializingFrames()};
+  return {slam.trajectory(),      source->groundTruth(),
+          slam.lostFrames(),      slam.resets(),
+          slam.timings().frames,  slam.inertialInitialized(),
+          slam.timings().matches, slam.initializingFrames(),
+          slam.numMapPoints(),    slam.numCrossClassMapPoints()};
 }
 
 /// The trajectory and ground truth of a finished run (for ateOf).
@@ -574,6 +578,29 @@ TEST(ClassWiseMatching, NoCrossClassMatchesWhenOnSomeWhenOff) {
   EXPECT_GT(unlabelled.matches.stereo, 1000);
   EXPECT_EQ(unlabelled.matches.stereo_cross_class, 0);
   EXPECT_EQ(unlabelled.matches.map_cross_class, 0);
+}
+
+TEST(ClassWiseMatching, MonocularMapsHaveNoCrossClassPoints) {
+  // Monocular maps grow only by the two-view initialisation and keyframe-to-keyframe
+  // triangulation: both must respect the classes as the tracking does.
+  io::DatasetSourceOptions source_options;
+  source_options.instance_masks = true;
+  for (const auto& [mode, config] :
+       {std::pair{SensorMode::kMono, "euroc_mono.yaml"},
+        std::pair{SensorMode::kMonoInertial, "euroc_mono_inertial.yaml"}}) {
+    SystemOptions options = shippedOptions(config);
+    options.front_end.features.class_wise_matching = true;
+    const RunSummary on = runSlam(dynamicSequence(), mode, options, source_options);
+    options.front_end.features.class_wise_matching = false;
+    const RunSummary off = runSlam(dynamicSequence(), mode, options, source_options);
+    std::cout << "dynamic street, 3 s, " << toString(mode)
+              << ": cross-class map points: class-wise on " << on.cross_class_map_points << " of "
+              << on.map_points << ", off " << off.cross_class_map_points << " of " << off.map_points
+              << "\n";
+    EXPECT_GT(on.map_points, 500u) << toString(mode);
+    EXPECT_EQ(on.cross_class_map_points, 0u) << toString(mode);
+    EXPECT_GT(off.cross_class_map_points, 0u) << toString(mode);
+  }
 }
 
 bool havePythonOnnx() {

@@ -60,9 +60,9 @@ TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
   bundle.masks = masks;
 
   FrontEndOptions options;
-  options.features.class_wise_matching = false;
+  options.stereo.same_class_only = false;
   const Frame blind = eurocFrontEnd(path, options).build(bundle);
-  options.features.class_wise_matching = true;
+  options.stereo.same_class_only = true;
   const Frame class_wise = eurocFrontEnd(path, options).build(bundle);
   ASSERT_EQ(blind.size(), class_wise.size());
   int on_vehicle = 0, stereo_on_vehicle = 0;

@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
+#include <iostream>
+#include <optional>
 #include <random>
 
 #include "support/test_support.h"
@@ -118,6 +121,75 @@ TEST(MonoInitializer, TooFewMatchesFail) {
       reconstructTwoView(project(points, sidewaysMotion(), 0.5, 11), kFocalPx, {});
   EXPECT_FALSE(r.ok);
   EXPECT_EQ(r.failure, "too few matches");
+}
+
+/// A frame seeing `points` (camera frame of view 0) from pose T_c0_c: ORB-like keypoints at their
+/// exact pixels, one random descriptor per point (the same in every view), class_id by class_of.
+Frame viewOf(const std::vector<Eigen::Vector3d>& points, const SE3d& T_c0_c, TimeNs t_ns,
+             const std::function<int(std::size_t)>& class_of) {
+  std::mt19937 rng(17);  // the same descriptors in every view
+  std::uniform_int_distribution<int> byte(0, 255);
+  Frame frame;
+  frame.t_ns = t_ns;
+  frame.features.image_size = cv::Size(752, 480);
+  frame.features.descriptors = cv::Mat(static_cast<int>(points.size()), 32, CV_8UC1);
+  const SE3d T_c_c0 = T_c0_c.inverse();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d p_c = T_c_c0 * points[i];
+    const Eigen::Vector2d x = p_c.head<2>() / p_c.z();
+    features::Keypoint k;
+    k.pixel = kFocalPx * x + Eigen::Vector2d(376.0, 240.0);
+    k.angle = 0.0f;
+    k.class_id = class_of(i);
+    frame.features.keypoints.push_back(k);
+    frame.normalized.push_back(x);
+    for (int c = 0; c < 32; ++c) {
+      frame.features.descriptors.at<std::uint8_t>(static_cast<int>(i), c) =
+          static_cast<std::uint8_t>(byte(rng));
+    }
+  }
+  return frame;
+}
+
+/// Initialisation points whose reference and current keypoints carry different class_id.
+int crossClassPoints(const MonoInitialization& init, const Frame& current) {
+  int cross = 0;
+  for (const MonoInitialization::Point& p : init.points) {
+    const auto r = static_cast<std::size_t>(p.reference_index);
+    const auto c = static_cast<std::size_t>(p.current_index);
+    if (init.reference.features.keypoints[r].class_id != current.features.keypoints[c].class_id) {
+      ++cross;
+    }
+  }
+  return cross;
+}
+
+TEST(MonoInitializer, ClassWiseMatchingRefusesCrossClassPairs) {
+  const std::vector<Eigen::Vector3d> points = scenePoints(400, 12, false);
+  const SE3d motion(expSO3(Eigen::Vector3d(0.0, -0.02, 0.0)), Eigen::Vector3d(0.25, 0.03, 0.05));
+  const Frame reference =
+      viewOf(points, SE3d(), 0, [](std::size_t) { return features::kClassBackground; });
+  // In the current view every third point lies on a vehicle: the reference saw it as background.
+  const Frame current = viewOf(points, motion, secondsToNs(0.2), [](std::size_t i) {
+    return i % 3 == 0 ? features::kClassVehicle : features::kClassBackground;
+  });
+  for (const bool class_wise : {false, true}) {
+    MonoInitializerOptions options;
+    options.same_class_only = class_wise;
+    MonoInitializer initializer(options, kFocalPx);
+    EXPECT_FALSE(initializer.addFrame(reference));
+    const std::optional<MonoInitialization> init = initializer.addFrame(current);
+    ASSERT_TRUE(init) << initializer.lastFailure();
+    const int cross = crossClassPoints(*init, current);
+    std::cout << "mono initialisation, class-wise " << (class_wise ? "on" : "off") << ": "
+              << init->points.size() << " points, " << cross << " cross-class\n";
+    if (class_wise) {
+      EXPECT_EQ(cross, 0);
+      EXPECT_GT(init->points.size(), 200u);  // the 2 in 3 background points remain
+    } else {
+      EXPECT_GT(cross, 100);
+    }
+  }
 }
 
 TEST(MonoInitializer, RejectsBadOptions) {

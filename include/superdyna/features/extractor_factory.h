@@ -43,13 +43,15 @@ struct FeatureOptions {
   /// end runs the left and right networks side by side (FrontEndOptions::parallel_extraction),
   /// which uses two cores better than splitting every operator of one network over two threads.
   int inference_threads = 1;
-  /// Match keypoints (stereo, map-to-frame) only within one semantic class (Keypoint::class_id).
+  /// Match keypoints only within one semantic class (Keypoint::class_id), in every matcher of the
+  /// system (stereo, map-to-frame, reference keyframe, monocular initialisation, triangulation).
   bool class_wise_matching = true;
 
   /// The model name makeExtractor() loads for a learned type ("" for ORB).
   std::string modelName() const;
   /// Throws OptionError naming the first invalid field (features.*, orb.*).
   void validate() const;
+  bool operator==(const FeatureOptions&) const = default;
 };
 
 /// The scale pyramid an extractor's keypoints come from: ORB's levels; learned extractors detect

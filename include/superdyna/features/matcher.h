@@ -80,6 +80,7 @@ struct OrientationCheckOptions {
   double min_bin_fraction = 0.1;
 
   void validate() const;
+  bool operator==(const OrientationCheckOptions&) const = default;
 };
 
 /// The matches whose angle difference (query angle - train angle) falls into one of the
@@ -104,6 +105,7 @@ struct BruteForceMatchOptions {
   OrientationCheckOptions orientation;
 
   void validate() const;
+  bool operator==(const BruteForceMatchOptions&) const = default;
 };
 
 /// Exhaustive matching. Throws InputError unless both sets have one descriptor type and length.
@@ -146,6 +148,7 @@ struct ProjectionMatchOptions {
   bool same_class_only = false;  ///< Candidates must share the query's class_id (file comment).
 
   void validate() const;
+  bool operator==(const ProjectionMatchOptions&) const = default;
 };
 
 /// For each query feature i with a finite predicted pixel predicted[i] (e.g. a map point

@@ -32,6 +32,7 @@ struct OrbOptions {
 
   /// Throws OptionError naming the first invalid field.
   void validate() const;
+  bool operator==(const OrbOptions&) const = default;
 };
 
 /// ORB extractor; see the file comment. Deterministic and single-threaded.

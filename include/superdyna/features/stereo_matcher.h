@@ -51,6 +51,7 @@ struct StereoMatchOptions {
   bool same_class_only = false;  ///< Pair only keypoints of one class_id (file comment).
 
   void validate() const;
+  bool operator==(const StereoMatchOptions&) const = default;
 };
 
 /// One stereo correspondence with its triangulated point.

@@ -165,6 +165,9 @@ class Map {
   KeyFrameId nextKeyFrame(KeyFrameId id) const;
   /// Ids of the points that are not bad, in increasing order.
   std::vector<MapPointId> mapPointIds() const;
+  /// Points (not bad) whose observing keypoints do not all carry one class_id: a match across
+  /// semantic classes made them (class-wise matching never does).
+  std::size_t numCrossClassMapPoints() const;
 
   /// Copies (cv::Mat members share their pixel data with the map's, which the map never writes).
   std::optional<KeyFrame> keyFrame(KeyFrameId id) const;

@@ -68,6 +68,7 @@ struct InertialMapInitOptions {
 
   /// Throws OptionError naming the first invalid field.
   void validate() const;
+  bool operator==(const InertialMapInitOptions&) const = default;
 };
 
 struct InertialMapInitResult {

@@ -26,6 +26,7 @@ struct KeyFrameCullingOptions {
   /// Same, after the inertial initialisation, for keyframes older than the inertial window [s].
   double max_gap_inertial_s = 3.0;
   void validate() const;
+  bool operator==(const KeyFrameCullingOptions&) const = default;
 };
 
 /// IMU state of the map as culling needs it.

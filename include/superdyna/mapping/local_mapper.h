@@ -74,6 +74,7 @@ struct LocalMapperOptions {
   int inertial_fixed_covisible = 5;
   int inertial_iterations = 5;  ///< Iterations of the VI local BA, >= 1.
   void validate() const;
+  bool operator==(const LocalMapperOptions&) const = default;
 };
 
 /// What one processKeyFrame() call did.

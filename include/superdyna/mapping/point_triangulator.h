@@ -9,7 +9,8 @@
 // coordinates, scaled by the focal length to pixels) must be within the 1-dof chi^2 bound of its
 // octave sigma, and it must not lie near the epipole. Each pair is triangulated; a new point must
 // have enough parallax, lie in front of both cameras, reproject within the 2-dof chi^2 bound in
-// both keyframes and be seen at distances consistent with the two octaves.
+// both keyframes and be seen at distances consistent with the two octaves. With same_class_only a
+// keypoint is matched only with keypoints of its semantic class (class_id), as in tracking.
 
 #include <vector>
 
@@ -29,8 +30,11 @@ struct PointTriangulatorOptions {
   double reprojection_chi2 = optim::kChi2Mono95;  ///< Reprojection bound (chi^2, 2 dof), > 0.
   double sigma0_px = 1.0;     ///< Keypoint standard deviation at octave 0 [px], > 0.
   double scale_factor = 1.2;  ///< Pyramid scale between octaves, > 1.
+  /// Match only keypoints of one class_id (the System sets it from features.class_wise_matching).
+  bool same_class_only = false;
   /// Throws OptionError naming the first invalid field (prefix "mapping.triangulation_").
   void validate() const;
+  bool operator==(const PointTriangulatorOptions&) const = default;
 };
 
 class PointTriangulator {

@@ -57,6 +57,7 @@ struct PoseOptimizerOptions {
   /// Throws OptionError for non-positive counts, sigma or thresholds, scale_factor < 1, or
   /// robust_rounds outside [0, rounds].
   void validate() const;
+  bool operator==(const PoseOptimizerOptions&) const = default;
 };
 
 struct PoseOptimizationResult {

@@ -51,12 +51,26 @@ struct SystemOptions {
   int frame_queue = 2;        ///< Concurrent: frames the front end may build ahead, >= 1.
   int mapping_queue = 16;     ///< Concurrent: mapping jobs (2 per keyframe) that may wait, >= 1.
   void validate() const;
+  bool operator==(const SystemOptions&) const = default;
 };
 
+/// Copies the one matching option, features.class_wise_matching, to every matcher: stereo,
+/// map-to-frame projection, reference keyframe, monocular initialisation and keyframe-to-keyframe
+/// triangulation (their same_class_only). The System applies it to its options.
+void applyClassWiseMatching(SystemOptions& options);
+
 /// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
-/// `tracker`, `mono_init`, `mapping`) over `defaults`; an unknown section or key is an InputError
-/// naming file and key.
+/// `tracker`, `mono_init`, `mapping`, `pipeline`) over `defaults`; an unknown section or key is an
+/// InputError naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
+
+/// The options as an options file that loadSystemOptions reads back to the same values: every key
+/// of every section (one table serves both), numbers in their shortest exact decimal form. The
+/// mode and the pipeline, which come from the command line, are named in a comment.
+std::string formatSystemOptions(const SystemOptions& options);
+
+/// Writes formatSystemOptions(options) to `file`; InputError naming the file when it cannot.
+void writeSystemOptions(const std::filesystem::path& file, const SystemOptions& options);
 
 /// CPU time each thread of the pipeline used [ms] (CPU, not wall-clock, time: meaningful on a
 /// loaded machine too). In the deterministic pipeline everything runs in the caller's thread.
@@ -132,6 +146,8 @@ class System {
   int resets() const { return tracker_.resets(); }
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
+  /// Points of the current map observed by keypoints of different classes (map::Map).
+  std::size_t numCrossClassMapPoints() const;
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return tracker_.inertialInitialized(); }
 

@@ -28,12 +28,14 @@
 namespace superdyna::tracking {
 
 struct FrontEndOptions {
-  features::FeatureOptions features;    ///< Extractor of both cameras, class-wise matching.
-  features::StereoMatchOptions stereo;  ///< Left-right matching (same_class_only follows
-                                        ///< features.class_wise_matching).
+  /// Extractor of both cameras; class_wise_matching reaches the stereo matcher through
+  /// stereo.same_class_only (system::applyClassWiseMatching).
+  features::FeatureOptions features;
+  features::StereoMatchOptions stereo;  ///< Left-right matching.
   /// Stereo: extract the right image on a helper thread while the left one is extracted.
   bool parallel_extraction = true;
   void validate() const;
+  bool operator==(const FrontEndOptions&) const = default;
 };
 
 /// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,

@@ -31,6 +31,7 @@ struct InertialPriorOptions {
   double position_sigma_m = 0.005;  ///< Keyframe position std [m], > 0.
   double rotation_sigma_deg = 0.2;  ///< Keyframe rotation std [deg], > 0.
   void validate() const;
+  bool operator==(const InertialPriorOptions&) const = default;
 };
 
 struct InertialPrediction {

@@ -3,7 +3,8 @@
 //
 //  1. A reference frame is kept until a later frame has enough matches to it. Matches come from a
 //     window search around the reference keypoint positions (the camera moves little between the
-//     two views), with the ratio and rotation-consistency checks.
+//     two views), with the ratio and rotation-consistency checks; with same_class_only only
+//     keypoints of one semantic class (class_id) are paired.
 //  2. A RANSAC essential matrix (general scenes) and a RANSAC homography (planar or nearly planar
 //     scenes) are estimated on undistorted normalised coordinates; ORB-SLAM's score ratio picks
 //     one. Each of its decompositions (four of E, up to four of H) triangulates all matches; the
@@ -46,9 +47,12 @@ struct MonoInitializerOptions {
   double max_reference_age_s = 1.0;
   double sigma0_px = 1.0;     ///< Keypoint standard deviation at octave 0 [px], > 0.
   double scale_factor = 1.2;  ///< Pyramid scale between octaves, >= 1 (1: one level).
+  /// Match only keypoints of one class_id (the System sets it from features.class_wise_matching).
+  bool same_class_only = false;
 
   /// Throws OptionError naming the first invalid field (prefix "mono_init.").
   void validate() const;
+  bool operator==(const MonoInitializerOptions&) const = default;
 };
 
 /// Correspondences between two views in undistorted normalised coordinates, with the keypoint

@@ -56,6 +56,7 @@ struct ReferenceMatchingOptions {
   int min_inliers = 50;
 
   void validate() const;
+  bool operator==(const ReferenceMatchingOptions&) const = default;
 };
 
 /// The map points a keyframe observes: row i of features (keypoint, descriptor) sees p_w[i].

@@ -111,6 +111,7 @@ struct TrackerOptions {
   /// motion is unknown and as a retry before a frame is declared lost.
   ReferenceMatchingOptions reference_matching;
   void validate() const;
+  bool operator==(const TrackerOptions&) const = default;
 };
 
 /// kInitializing: a monocular map is being initialised; the frame has no pose estimate.
