@@ -32,6 +32,7 @@ struct PointFusionOptions {
   double sigma0_px = 1.0;       ///< Keypoint standard deviation at octave 0 [px], > 0.
   /// Throws OptionError naming the first invalid field (prefix "mapping.fusion_").
   void validate() const;
+  bool operator==(const PointFusionOptions&) const = default;
 };
 
 struct PointFusionResult {
