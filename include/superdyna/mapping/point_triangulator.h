@@ -10,6 +10,8 @@
 // octave sigma, and it must not lie near the epipole. Each pair is triangulated; a new point must
 // have enough parallax, lie in front of both cameras, reproject within the 2-dof chi^2 bound in
 // both keyframes and be seen at distances consistent with the two octaves.
+// The new points of each pair are added as one map update (Map::updateLock()); a keypoint that
+// came to observe a point since the keyframes were read keeps it.
 
 #include <vector>
 
