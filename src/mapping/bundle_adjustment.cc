@@ -83,15 +83,19 @@ class Problem {
     addReprojections(collectReprojections());
     result.observations = static_cast<int>(observations_.size());
     if (observations_.empty()) {
+      const map::Map::UpdateLock update = map_.updateLock();
       result.outliers = removeInvalidAtStart();
       return result;
     }
     setPoseManifolds();
     if (window_.inertial) result.imu_edges = addInertialFactors();
     if (!solve()) {
+      const map::Map::UpdateLock update = map_.updateLock();
       result.outliers = removeInvalidAtStart();  // the state is left as it was
       return result;
     }
+    // One map update: readers under the map's read lock see the whole result or none of it.
+    const map::Map::UpdateLock update = map_.updateLock();
     writeBack();
     result.outliers = removeInvalidAtStart() + removeOutliers();
     return result;

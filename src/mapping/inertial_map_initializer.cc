@@ -101,6 +101,7 @@ double largestRotationDeg(const KeyFrameChain& chain) {
 }
 
 void applyToMap(map::Map& map, const KeyFrameChain& chain, const InertialMapInitResult& result) {
+  const map::Map::UpdateLock update = map.updateLock();  // one map update
   map.transformWorld(result.T_new_old);
   const imu::Bias& bias = result.estimate.bias;
   for (const map::KeyFrameId id : map.keyFrameIds()) {

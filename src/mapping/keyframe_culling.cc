@@ -105,6 +105,8 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, map::KeyFrame
       if (*gap > max_gap) continue;
     }
     if (redundantPointShare(map, id, options.min_observers) < options.redundancy) continue;
+    // One map update: the keyframe and the points only it observed go together.
+    const map::Map::UpdateLock update = map.updateLock();
     if (const auto orphans = map.eraseKeyFrame(id)) {
       for (const map::MapPointId point : *orphans)
         map.eraseMapPoint(point);

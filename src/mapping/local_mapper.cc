@@ -246,6 +246,7 @@ LocalMappingResult LocalMapper::initializeInertialIfDue(map::Map& map, map::KeyF
 }
 
 void LocalMapper::cullRecentPoints(map::Map& map, map::KeyFrameId newest) {
+  const map::Map::UpdateLock update = map.updateLock();  // one map update
   std::vector<std::pair<map::MapPointId, map::KeyFrameId>> keep;
   for (const auto& [point, created] : recent_points_) {
     if (!map.hasMapPoint(point)) continue;

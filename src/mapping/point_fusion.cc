@@ -160,6 +160,7 @@ void PointFuser::fuseOne(map::Map& map, View& view, map::MapPointId point_id,
   if (best < 0 || best_distance > bound) return;
   map::MapPointId& slot = view.keyframe.map_points[static_cast<std::size_t>(best)];
   map::MapPointId survivor = point_id;
+  const map::Map::UpdateLock update = map.updateLock();  // one map update per fused point
   if (slot == map::kNoMapPoint) {
     if (!map.addObservation(point_id, view.keyframe.id, best)) return;
     ++result.added;

@@ -88,6 +88,43 @@ Eigen::Vector3d homogeneous(const Eigen::Vector2d& x) {
   return {x.x(), x.y(), 1.0};
 }
 
+/// Keypoint `index` of the keyframe observes no map point (false when the keyframe is gone).
+bool keypointFree(const map::Map& map, map::KeyFrameId id, int index) {
+  bool free = false;
+  map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+    free = kf.map_points[static_cast<std::size_t>(index)] == map::kNoMapPoint;
+  });
+  return free;
+}
+
+/// A triangulated point and the keypoints of the two keyframes that observe it.
+struct NewPoint {
+  map::MapPoint point;
+  int current_index = -1;
+  int neighbour_index = -1;
+};
+
+/// Adds the points with their two observations as one map update. A keypoint that has come to
+/// observe a point since the keyframes were read (the tracker's stereo points of a keyframe
+/// inserted meanwhile) keeps it: that new point is skipped.
+std::vector<map::MapPointId> addPoints(map::Map& map, map::KeyFrameId current,
+                                       map::KeyFrameId neighbour, std::vector<NewPoint> points) {
+  const map::Map::UpdateLock update = map.updateLock();
+  std::vector<map::MapPointId> created;
+  for (NewPoint& p : points) {
+    if (!keypointFree(map, current, p.current_index) ||
+        !keypointFree(map, neighbour, p.neighbour_index)) {
+      continue;
+    }
+    const map::MapPointId id = map.addMapPoint(std::move(p.point));
+    map.addObservation(id, current, p.current_index);
+    map.addObservation(id, neighbour, p.neighbour_index);
+    map.updateNormalAndDistances(id);
+    created.push_back(id);
+  }
+  return created;
+}
+
 }  // namespace
 
 PointTriangulator::PointTriangulator(const PointTriangulatorOptions& options,
@@ -182,7 +219,7 @@ std::vector<map::MapPointId> PointTriangulator::triangulatePair(map::Map& map, V
   optim::TriangulationOptions triangulation;
   triangulation.max_cos_parallax = options_.max_cos_parallax;
   const double ratio_factor = 1.5 * options_.scale_factor;
-  std::vector<map::MapPointId> created;
+  std::vector<NewPoint> triangulated;
   for (std::size_t j = 0; j < kn.size(); ++j) {
     const int i = best_for_neighbour[j].first;
     if (i < 0) continue;
@@ -210,19 +247,16 @@ std::vector<map::MapPointId> PointTriangulator::triangulatePair(map::Map& map, V
         ratio_distance > ratio_octave * ratio_factor) {
       continue;
     }
-    map::MapPoint point;
-    point.p_w = r.p_w;
-    point.descriptor = kc.descriptors.row(i).clone();
-    point.class_id = a.class_id;
-    point.instance_id = a.instance_id;
-    const map::MapPointId id = map.addMapPoint(std::move(point));
-    map.addObservation(id, kc.id, i);
-    map.addObservation(id, kn.id, static_cast<int>(j));
-    map.updateNormalAndDistances(id);
+    NewPoint& p = triangulated.emplace_back();
+    p.point.p_w = r.p_w;
+    p.point.descriptor = kc.descriptors.row(i).clone();
+    p.point.class_id = a.class_id;
+    p.point.instance_id = a.instance_id;
+    p.current_index = i;
+    p.neighbour_index = static_cast<int>(j);
     current.free[static_cast<std::size_t>(i)] = false;
-    created.push_back(id);
   }
-  return created;
+  return addPoints(map, kc.id, kn.id, std::move(triangulated));
 }
 
 }  // namespace superdyna::mapping

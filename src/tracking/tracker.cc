@@ -208,6 +208,11 @@ TrackingResult Tracker::track(const Frame& frame) {
   result.times.stereo_ms = frame.stereo_ms;
   const auto start = Clock::now();
   if (imu_) imu_since_keyframe_.append(frame.imu);
+  // The map-reading part of the frame holds the map's read lock (map.h): it sees each update of
+  // the mapping thread entirely or not at all. Without a map it reads none, and starting a map
+  // waits for the mapping thread, which must not find the lock held.
+  map::Map::ReadLock reading;
+  if (has_map_) reading = map_->readLock();
   const Prediction prediction = predictPose(frame);
   result.T_w_b = prediction.T_w_b;
   if (!has_map_ && isMonocular()) {
@@ -225,6 +230,7 @@ TrackingResult Tracker::track(const Frame& frame) {
   }
   const std::vector<map::MapPointId> tracked = trackFrame(frame, prediction, result);
   result.times.track_ms = millisecondsSince(start);
+  bool wants_keyframe = false;
   if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
     result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
   } else if (result.inliers < options_.min_inliers) {
@@ -234,9 +240,11 @@ TrackingResult Tracker::track(const Frame& frame) {
   } else {
     result.state = TrackingState::kTracking;
     t_tracked_ns_ = frame.t_ns;
-    if (needKeyFrame(frame, result.inliers) && mappingAcceptsKeyFrame(frame, result.inliers)) {
-      addKeyFrameAndMap(frame, tracked, prediction, result);
-    }
+    wants_keyframe = needKeyFrame(frame, result.inliers);
+  }
+  reading.unlock();  // a new keyframe is submitted to (and may wait for) the mapping thread
+  if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
+    addKeyFrameAndMap(frame, tracked, prediction, result);
   }
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
@@ -451,6 +459,7 @@ void Tracker::initializeInertialIfDue(TrackingResult& result) {
 
 void Tracker::updateBiasFromMap() {
   if (inertial_inits_ == 0) return;
+  const map::Map::ReadLock reading = map_->readLock();  // the link and the biases of one state
   // Sequentially, local BA has just refined the newest keyframe. With a mapping thread its BA may
   // still be queued (its biases are the ones this tracker gave it): take its predecessor, which
   // local BA has most likely refined by now.
@@ -690,8 +699,13 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
     k.depth_m = frame.depth_m[i];
   }
   kf.map_points = tracked;
-  const map::KeyFrameId id = map_->addKeyFrame(std::move(kf));
-  const std::vector<map::MapPointId> created = createStereoPoints(frame, T_w_b, id, tracked);
+  map::KeyFrameId id = map::kNoKeyFrame;
+  std::vector<map::MapPointId> created;
+  {
+    const map::Map::UpdateLock update = map_->updateLock();  // the keyframe with its new points
+    id = map_->addKeyFrame(std::move(kf));
+    created = createStereoPoints(frame, T_w_b, id, tracked);
+  }
   runMapping([this, id, right = frame.right_normalized, created]() mutable {
     mapper_.addKeyFrame(id, std::move(right), created);
   });

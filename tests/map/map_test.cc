@@ -2,8 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <iostream>
+#include <latch>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <thread>
 
@@ -326,6 +331,82 @@ TEST(MapTest, ConcurrentObservationChangesStayConsistent) {
       EXPECT_EQ(map.covisibilityWeight(keyframes[a], keyframes[b]), 200);
     }
   }
+}
+
+/// One map update of the test below: moves every keyframe and every point 1 m along x, one call
+/// each, all under the update lock. Halfway it lets other threads run, as a preempted writer would.
+void shiftEverything(Map& map, const std::vector<KeyFrameId>& keyframes,
+                     const std::vector<MapPointId>& points) {
+  const Eigen::Vector3d step(1.0, 0.0, 0.0);
+  const Map::UpdateLock update = map.updateLock();
+  for (const KeyFrameId id : keyframes) {
+    SE3d T_w_b = *map.keyFramePose(id);
+    T_w_b.t += step;
+    map.setKeyFramePose(id, T_w_b);
+  }
+  std::this_thread::yield();
+  for (const MapPointId id : points)
+    map.setMapPointPosition(id, *map.mapPointPosition(id) + step);
+}
+
+/// How far (x, m) each keyframe and point has moved from its start, read under the read lock.
+std::vector<double> shiftsSeen(const Map& map, const std::vector<KeyFrameId>& keyframes,
+                               const std::vector<MapPointId>& points) {
+  const Map::ReadLock reading = map.readLock();
+  std::vector<double> shifts;
+  for (std::size_t k = 0; k < keyframes.size(); ++k)
+    shifts.push_back(map.keyFramePose(keyframes[k])->t.x() - static_cast<double>(k));
+  for (std::size_t i = 0; i < points.size(); ++i)
+    shifts.push_back(map.mapPointPosition(points[i])->x() - static_cast<double>(i));
+  return shifts;
+}
+
+TEST(MapUpdate, AReaderUnderTheReadLockSeesEachUpdateEntirelyOrNotAtAll) {
+  constexpr int kUpdates = 200;
+  constexpr int kMaxReads = 1000000;  // bound; the reader stops when the writer is done
+  Map map;
+  std::vector<KeyFrameId> keyframes;
+  std::vector<MapPointId> points;
+  for (int k = 0; k < 10; ++k) {
+    keyframes.push_back(map.addKeyFrame(
+        makeKeyFrame(1, SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(k, 0.0, 0.0)))));
+  }
+  for (int i = 0; i < 100; ++i)
+    points.push_back(map.addMapPoint(makePoint(Eigen::Vector3d(i, 1.0, 5.0))));
+
+  std::latch start(2);
+  std::atomic<bool> done{false};
+  std::atomic<int> reads{0};
+  std::thread writer([&] {
+    start.arrive_and_wait();
+    for (int u = 0; u < kUpdates; ++u) {
+      const int reads_before = reads;
+      shiftEverything(map, keyframes, points);
+      // Interleave: the next update waits for a snapshot taken after this one began.
+      while (reads == reads_before && reads < kMaxReads)
+        std::this_thread::yield();
+    }
+    done = true;
+  });
+  start.arrive_and_wait();
+  int torn = 0;  // snapshots mixing moved and unmoved parts
+  std::set<double> states_seen;
+  while (!done && reads < kMaxReads) {
+    const std::vector<double> shifts = shiftsSeen(map, keyframes, points);
+    ++reads;
+    const auto [low, high] = std::minmax_element(shifts.begin(), shifts.end());
+    if (*low != *high) {
+      ++torn;
+    } else {
+      states_seen.insert(*low);
+    }
+  }
+  writer.join();
+  std::cout << reads << " snapshots during " << kUpdates << " updates: " << states_seen.size()
+            << " distinct whole states, " << torn << " torn\n";
+  EXPECT_EQ(torn, 0);
+  for (const double shift : shiftsSeen(map, keyframes, points))
+    ASSERT_EQ(shift, static_cast<double>(kUpdates));
 }
 
 }  // namespace

@@ -10,10 +10,31 @@
 // change (add, erase, replace, erasing keyframes or points), so it always equals the graph one
 // would rebuild from the observations (consistencyError() checks that).
 //
-// Thread safety: one std::mutex per Map guards all its state. Every public member function locks
-// it for its own duration, so single calls are atomic and the map never exposes a half-updated
-// observation. Accessors return copies (or run a read-only callback under the lock, see
-// readKeyFrame()); a sequence of calls is not atomic as a whole.
+// Thread safety, single calls: one std::mutex per Map guards all its state. Every public member
+// function locks it for its own duration, so single calls are atomic and the map never exposes a
+// half-updated observation. Accessors return copies (or run a read-only callback under the lock,
+// see readKeyFrame()).
+//
+// Thread safety, map updates: a sequence of calls is not atomic by itself. A change made in several
+// calls (a bundle adjustment's write-back and outlier removal, point culling, keyframe culling,
+// triangulated points, the tracker's insertion of a keyframe and its points) is one map update: its
+// thread holds updateLock() (exclusive) over all of its calls. A reader that needs several calls to
+// agree (the tracker's frame: prediction from the reference keyframe, local points, projection
+// matching, keyframe decision) holds readLock() (shared) over them; it then sees each update
+// entirely or not at all (ORB-SLAM3's map-update mutex). The rules:
+// - Neither lock is recursive: a thread holding one takes neither again (the deterministic pipeline
+//   runs the mapper's updates in the tracker's thread, so the tracker releases its read lock
+//   first).
+// - A thread holding either lock never waits for another thread that may take updateLock(): the
+//   tracker releases its read lock before it submits a job to the mapping thread or waits for it
+//   (MappingSink::submit, waitIdle, discardPending).
+// - Under readLock() a thread may still make single-call changes that need no transaction (the
+//   tracker's visible/found counters); the per-call mutex keeps those atomic.
+// - Calls made without either lock stay atomic one by one, as before; code that runs while no
+//   other thread uses the map (the tracker's map initialisation, the inertial initialisation with
+//   the mapping thread idle) needs no lock.
+// The per-call mutex is always taken inside the update lock, never the other way round, so the
+// callbacks of readKeyFrame() and readMapPoint() must not take either lock.
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -21,6 +42,7 @@
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <shared_mutex>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -67,6 +89,15 @@ class Map {
   Map& operator=(const Map&) = delete;
 
   const MapOptions& options() const { return options_; }
+
+  // ---- Map updates (see "Thread safety" above) --------------------------------------------------
+
+  using UpdateLock = std::unique_lock<std::shared_mutex>;
+  using ReadLock = std::shared_lock<std::shared_mutex>;
+  /// Exclusive: held over all the calls of one multi-call map update. Waits for readers to leave.
+  [[nodiscard]] UpdateLock updateLock() { return UpdateLock(update_mutex_); }
+  /// Shared: held over reads that must see each update entirely or not at all.
+  [[nodiscard]] ReadLock readLock() const { return ReadLock(update_mutex_); }
 
   // ---- Structure -------------------------------------------------------------------------------
 
@@ -230,6 +261,8 @@ class Map {
   std::string covisibilityError() const;
 
   MapOptions options_;
+  /// Map updates against multi-call readers; taken before mutex_, never while holding it.
+  mutable std::shared_mutex update_mutex_;
   mutable std::mutex mutex_;
   std::unordered_map<KeyFrameId, KeyFrame> keyframes_;
   std::unordered_map<MapPointId, MapPoint> points_;

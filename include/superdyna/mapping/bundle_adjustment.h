@@ -16,6 +16,8 @@
 // After solving: poses (and inertial states) and points are written back, left observations
 // failing the chi^2 test or left out as above are removed and the points' normals and distances
 // are updated. When Ceres gives no usable solution, a warning is logged and nothing is written.
+// The state is read and solved without a lock; everything written afterwards is one map update
+// (Map::updateLock()), so the caller must not hold the map's read or update lock.
 
 #include <map>
 #include <optional>

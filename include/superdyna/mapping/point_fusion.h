@@ -11,7 +11,8 @@
 // chi^2 bound are compared by descriptor. The best one below the distance bound is fused: a
 // keypoint that observes another point merges the two (the one with fewer observations goes into
 // the other, Map::replaceMapPoint), a free keypoint becomes a new observation. Points are matched
-// only from within their viewing limits (map::withinViewingLimits).
+// only from within their viewing limits (map::withinViewingLimits). Each fused point is one map
+// update (Map::updateLock()); the pyramid (scale factor, levels) is the map's (map::MapOptions).
 
 #include <vector>
 

@@ -11,6 +11,8 @@
 // have enough parallax, lie in front of both cameras, reproject within the 2-dof chi^2 bound in
 // both keyframes and be seen at distances consistent with the two octaves. With same_class_only a
 // keypoint is matched only with keypoints of its semantic class (class_id), as in tracking.
+// The new points of each pair are added as one map update (Map::updateLock()); a keypoint that
+// came to observe a point since the keyframes were read keeps it.
 
 #include <vector>
 

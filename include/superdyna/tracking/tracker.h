@@ -23,6 +23,11 @@
 // keyframes are the ones the sequential pipeline would take). Otherwise (ORB-SLAM's real-time
 // policy) the keyframe is refused unless tracking is weak (fewer than keyframe_weak_inliers
 // inliers) or keyframe_max_interval_s has passed since the last one, and only then waited for.
+//
+// With a mapping thread each frame reads the map (prediction from the reference keyframe, local
+// map, matching, keyframe decision) under the map's read lock, so that it sees a local BA, a
+// culling or a triangulation either applied entirely or not at all; it releases the lock before it
+// inserts a keyframe (itself one map update) and before anything that waits for the mapper.
 
 #include <Eigen/Core>
 #include <functional>
@@ -154,7 +159,8 @@ struct PyramidInfo {
 /// LocalMapper, local BA, resets). Without a sink the tracker runs each job at once, inside
 /// track(): the sequential, deterministic pipeline. A sink may run the jobs later in another thread
 /// (the concurrent System); it must run them one at a time, in submission order, all in the same
-/// thread.
+/// thread. The jobs' multi-call map changes are map updates (map::Map::updateLock()); the tracker
+/// holds no lock of its map while it calls the sink, so a sink may run jobs inside its calls.
 class MappingSink {
  public:
   virtual ~MappingSink() = default;

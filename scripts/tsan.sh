@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Builds the tests of the concurrent pipeline with ThreadSanitizer and runs them; any data race
+# report stops the run with a non-zero exit code. Not part of CI: the instrumented build and runs
+# take tens of minutes on 2 cores.
+#
+# Usage: scripts/tsan.sh
+# Environment: BUILD_DIR (default build-tsan), JOBS (default 2), TSAN_OPTIONS (appended to
+#              halt_on_error=1 and the suppressions of scripts/tsan_suppressions.txt: third-party
+#              libraries only).
+#
+# What runs: the bounded queue and task thread (core_test), the map's update transaction and
+# concurrent observation changes (map_test), a local BA against a reader under the map's read lock
+# (mapping_test), the mapping worker and the concurrent stereo-inertial pipeline: front-end thread,
+# tracking, local mapping thread (system_test); then `superdyna run` in the concurrent pipeline,
+# mono-inertial and mono (the tracker waits for the mapping thread at keyframes and for the
+# inertial initialisation), on a 7 s sequence it simulates once into BUILD_DIR (with the MH_03
+# motion from ../shared when present). Tests that run learned models are left out: ONNX Runtime
+# is not instrumented, so its threads would give false reports.
+set -euo pipefail
+
+repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${BUILD_DIR:-"$repo_dir/build-tsan"}
+jobs=${JOBS:-2}
+
+cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS=-fsanitize=thread -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=thread \
+  -DSUPERDYNA_WERROR=ON
+nice -n 10 cmake --build "$build_dir" -j "$jobs" \
+  --target core_test map_test mapping_test system_test superdyna
+
+export TSAN_OPTIONS="halt_on_error=1 suppressions=$repo_dir/scripts/tsan_suppressions.txt ${TSAN_OPTIONS:-}"
+run() {
+  local binary=$1 filter=$2
+  echo "[tsan] $binary --gtest_filter=$filter"
+  nice -n 10 "$build_dir/bin/$binary" --gtest_filter="$filter" --gtest_brief=1
+}
+run core_test 'BoundedQueue.*:TaskThread.*'
+run map_test 'MapUpdate.*:MapTest.Concurrent*'
+run mapping_test 'BundleAdjustmentTest.AReaderUnderTheReadLock*'
+run system_test 'MappingWorker.*:ConcurrentSlam.*'
+
+sequence="$build_dir/tsan_sequence"
+if [ ! -f "$sequence/mav0/imu0/data.csv" ]; then
+  motion=()
+  trajectory="${SUPERDYNA_SHARED_DIR:-$repo_dir/../shared}/data/trajectories/euroc/MH_03_medium.txt"
+  [ -f "$trajectory" ] && motion=(--trajectory "$trajectory" --start 15)
+  nice -n 10 "$build_dir/bin/superdyna" simulate --out "$sequence" --scene indoor --dynamic none \
+    --duration 7 --seed 3 "${motion[@]}" --overwrite
+fi
+for mode in mono-inertial mono; do
+  echo "[tsan] superdyna run --mode $mode (concurrent)"
+  nice -n 10 "$build_dir/bin/superdyna" run --dataset euroc --path "$sequence" --mode "$mode" \
+    --config "$repo_dir/configs/euroc_${mode/-/_}.yaml" --output "$build_dir/tsan_$mode.txt" |
+    grep -E "frames in|ATE"
+done
+echo "[tsan] no data race reported"
