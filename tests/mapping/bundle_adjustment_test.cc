@@ -236,145 +236,144 @@ TEST(BundleAdjustmentTest, TheFullBaBiasPriorIsZeroMeanNotTheCurrentEstimate) {
   std::printf("gyro bias from two starts: (%.5f %.5f %.5f) vs (%.5f %.5f %.5f)\n", a.x(), a.y(),
               a.z(), b.x(), b.y(), b.z());
   EXPECT_LT((a - b).norm(), 1e-4);
+}
 
-  /// What a BA changes in the map: keyframe poses and inertial states, point positions, normals and
-  /// distance ranges.
-  struct MapState {
-    struct KeyFrameState {
-      SE3d T_w_b;
-      Eigen::Vector3d v_w, bg, ba;
-    };
-    struct PointState {
-      Eigen::Vector3d p_w, normal_w;
-      double min_distance_m = 0.0;
-      double max_distance_m = 0.0;
-    };
-    std::map<map::KeyFrameId, KeyFrameState> keyframes;
-    std::map<map::MapPointId, PointState> points;
+/// What a BA changes in the map: keyframe poses and inertial states, point positions, normals and
+/// distance ranges.
+struct MapState {
+  struct KeyFrameState {
+    SE3d T_w_b;
+    Eigen::Vector3d v_w, bg, ba;
   };
+  struct PointState {
+    Eigen::Vector3d p_w, normal_w;
+    double min_distance_m = 0.0;
+    double max_distance_m = 0.0;
+  };
+  std::map<map::KeyFrameId, KeyFrameState> keyframes;
+  std::map<map::MapPointId, PointState> points;
+};
 
-  /// Bit for bit.
-  bool sameState(const MapState& a, const MapState& b) {
-    const auto same_keyframe = [](const auto& x, const auto& y) {
-      return x.first == y.first && x.second.T_w_b.q.coeffs() == y.second.T_w_b.q.coeffs() &&
-             x.second.T_w_b.t == y.second.T_w_b.t && x.second.v_w == y.second.v_w &&
-             x.second.bg == y.second.bg && x.second.ba == y.second.ba;
-    };
-    const auto same_point = [](const auto& x, const auto& y) {
-      return x.first == y.first && x.second.p_w == y.second.p_w &&
-             x.second.normal_w == y.second.normal_w &&
-             x.second.min_distance_m == y.second.min_distance_m &&
-             x.second.max_distance_m == y.second.max_distance_m;
-    };
-    return std::equal(a.keyframes.begin(), a.keyframes.end(), b.keyframes.begin(),
-                      b.keyframes.end(), same_keyframe) &&
-           std::equal(a.points.begin(), a.points.end(), b.points.begin(), b.points.end(),
-                      same_point);
-  }
+/// Bit for bit.
+bool sameState(const MapState& a, const MapState& b) {
+  const auto same_keyframe = [](const auto& x, const auto& y) {
+    return x.first == y.first && x.second.T_w_b.q.coeffs() == y.second.T_w_b.q.coeffs() &&
+           x.second.T_w_b.t == y.second.T_w_b.t && x.second.v_w == y.second.v_w &&
+           x.second.bg == y.second.bg && x.second.ba == y.second.ba;
+  };
+  const auto same_point = [](const auto& x, const auto& y) {
+    return x.first == y.first && x.second.p_w == y.second.p_w &&
+           x.second.normal_w == y.second.normal_w &&
+           x.second.min_distance_m == y.second.min_distance_m &&
+           x.second.max_distance_m == y.second.max_distance_m;
+  };
+  return std::equal(a.keyframes.begin(), a.keyframes.end(), b.keyframes.begin(), b.keyframes.end(),
+                    same_keyframe) &&
+         std::equal(a.points.begin(), a.points.end(), b.points.begin(), b.points.end(), same_point);
+}
 
-  /// The map's state, read under its read lock.
-  MapState stateOf(const map::Map& map) {
-    const map::Map::ReadLock reading = map.readLock();
-    MapState state;
-    for (const map::KeyFrameId id : map.keyFrameIds()) {
-      map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
-        state.keyframes[id] = {kf.T_w_b, kf.v_w, kf.bg, kf.ba};
-      });
-    }
-    for (const map::MapPointId id : map.mapPointIds()) {
-      map.readMapPoint(id, [&](const map::MapPoint& p) {
-        state.points[id] = {p.p_w, p.normal_w, p.min_distance_m, p.max_distance_m};
-      });
-    }
-    return state;
-  }
-
-  /// Puts poses, inertial states and points back as in `state` (normals and distances recomputed),
-  /// as one map update.
-  void restore(map::Map & map, const MapState& state) {
-    const map::Map::UpdateLock update = map.updateLock();
-    for (const auto& [id, kf] : state.keyframes) {
-      map.setKeyFramePose(id, kf.T_w_b);
-      map.setKeyFrameInertialState(id, kf.v_w, kf.bg, kf.ba);
-    }
-    for (const auto& [id, point] : state.points) {
-      map.setMapPointPosition(id, point.p_w);
-      map.updateNormalAndDistances(id);
-    }
-  }
-
-  TEST(BundleAdjustmentTest, AReaderUnderTheReadLockSeesTheMapBeforeOrAfterTheBaNeverBetween) {
-    // The local BA runs in the mapping thread while the tracker reads the map: its write-back and
-    // outlier removal (hundreds of calls) must reach a reader under the map's read lock as one
-    // update. Each round restores the same start, so every BA writes the same result.
-    constexpr std::size_t kWindow = 6;
-    constexpr int kRounds = 100;
-    constexpr int kMaxReads = 1000000;  // bound; the reader stops when the writer is done
-    test::MappingScene scene = perturbedScene(kWindow);
-    map::Map& map = *scene.map;
-    const std::size_t first = scene.ids.size() - kWindow;
-    BundleAdjustmentWindow window;
-    window.inertial = true;
-    window.optimised.assign(scene.ids.begin() + static_cast<std::ptrdiff_t>(first),
-                            scene.ids.end());
-    window.fixed = {scene.ids[first - 1]};
-    BundleAdjustmentSettings settings;
-    settings.iterations = 2;
-    const auto run_ba = [&] {
-      KeyFramePreintegrations preintegrations(scene.noise);  // fresh: the same result every round
-      return bundleAdjust(map, window, {scene.camera}, {}, settings,
-                          BundleAdjustmentImu{SE3d(), &preintegrations});
-    };
-    const MapState start_state = stateOf(map);
-    restore(map, start_state);
-    const MapState before = stateOf(map);
-    ASSERT_EQ(run_ba().outliers, 0);  // the map's observations stay the same from round to round
-    const MapState after = stateOf(map);
-    ASSERT_FALSE(sameState(before, after));
-    restore(map, start_state);
-    ASSERT_TRUE(sameState(stateOf(map), before));
-
-    std::latch go(2);
-    std::atomic<bool> done{false};
-    std::thread mapping([&] {
-      go.arrive_and_wait();
-      for (int round = 0; round < kRounds; ++round) {
-        restore(map, start_state);
-        run_ba();
-      }
-      done = true;
+/// The map's state, read under its read lock.
+MapState stateOf(const map::Map& map) {
+  const map::Map::ReadLock reading = map.readLock();
+  MapState state;
+  for (const map::KeyFrameId id : map.keyFrameIds()) {
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      state.keyframes[id] = {kf.T_w_b, kf.v_w, kf.bg, kf.ba};
     });
-    go.arrive_and_wait();
-    int reads = 0;
-    int seen_before = 0;
-    int seen_after = 0;
-    int torn = 0;
-    while (!done && reads < kMaxReads) {
-      const MapState seen = stateOf(map);
-      ++reads;
-      if (sameState(seen, before)) {
-        ++seen_before;
-      } else if (sameState(seen, after)) {
-        ++seen_after;
-      } else {
-        ++torn;
-      }
-    }
-    mapping.join();
-    std::printf("%d snapshots during %d BAs: %d before, %d after, %d torn\n", reads, kRounds,
-                seen_before, seen_after, torn);
-    EXPECT_EQ(torn, 0);
-    EXPECT_TRUE(sameState(stateOf(map), after));
   }
+  for (const map::MapPointId id : map.mapPointIds()) {
+    map.readMapPoint(id, [&](const map::MapPoint& p) {
+      state.points[id] = {p.p_w, p.normal_w, p.min_distance_m, p.max_distance_m};
+    });
+  }
+  return state;
+}
 
-  TEST(BundleAdjustmentTest, InertialWindowNeedsTheImuContext) {
-    test::MappingScene scene = test::makeMappingScene({});
-    BundleAdjustmentWindow window;
-    window.inertial = true;
-    window.optimised = {scene.ids[1]};
-    window.fixed = {scene.ids[0]};
-    EXPECT_THROW(bundleAdjust(*scene.map, window, {scene.camera}, {}, {}), std::invalid_argument);
+/// Puts poses, inertial states and points back as in `state` (normals and distances recomputed),
+/// as one map update.
+void restore(map::Map& map, const MapState& state) {
+  const map::Map::UpdateLock update = map.updateLock();
+  for (const auto& [id, kf] : state.keyframes) {
+    map.setKeyFramePose(id, kf.T_w_b);
+    map.setKeyFrameInertialState(id, kf.v_w, kf.bg, kf.ba);
   }
+  for (const auto& [id, point] : state.points) {
+    map.setMapPointPosition(id, point.p_w);
+    map.updateNormalAndDistances(id);
+  }
+}
+
+TEST(BundleAdjustmentTest, AReaderUnderTheReadLockSeesTheMapBeforeOrAfterTheBaNeverBetween) {
+  // The local BA runs in the mapping thread while the tracker reads the map: its write-back and
+  // outlier removal (hundreds of calls) must reach a reader under the map's read lock as one
+  // update. Each round restores the same start, so every BA writes the same result.
+  constexpr std::size_t kWindow = 6;
+  constexpr int kRounds = 100;
+  constexpr int kMaxReads = 1000000;  // bound; the reader stops when the writer is done
+  test::MappingScene scene = perturbedScene(kWindow);
+  map::Map& map = *scene.map;
+  const std::size_t first = scene.ids.size() - kWindow;
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  window.optimised.assign(scene.ids.begin() + static_cast<std::ptrdiff_t>(first), scene.ids.end());
+  window.fixed = {scene.ids[first - 1]};
+  BundleAdjustmentSettings settings;
+  settings.iterations = 2;
+  const auto run_ba = [&] {
+    KeyFramePreintegrations preintegrations(scene.noise);  // fresh: the same result every round
+    return bundleAdjust(map, window, {scene.camera}, {}, settings,
+                        BundleAdjustmentImu{SE3d(), &preintegrations});
+  };
+  const MapState start_state = stateOf(map);
+  restore(map, start_state);
+  const MapState before = stateOf(map);
+  ASSERT_EQ(run_ba().outliers, 0);  // the map's observations stay the same from round to round
+  const MapState after = stateOf(map);
+  ASSERT_FALSE(sameState(before, after));
+  restore(map, start_state);
+  ASSERT_TRUE(sameState(stateOf(map), before));
+
+  std::latch go(2);
+  std::atomic<bool> done{false};
+  std::thread mapping([&] {
+    go.arrive_and_wait();
+    for (int round = 0; round < kRounds; ++round) {
+      restore(map, start_state);
+      run_ba();
+    }
+    done = true;
+  });
+  go.arrive_and_wait();
+  int reads = 0;
+  int seen_before = 0;
+  int seen_after = 0;
+  int torn = 0;
+  while (!done && reads < kMaxReads) {
+    const MapState seen = stateOf(map);
+    ++reads;
+    if (sameState(seen, before)) {
+      ++seen_before;
+    } else if (sameState(seen, after)) {
+      ++seen_after;
+    } else {
+      ++torn;
+    }
+  }
+  mapping.join();
+  std::printf("%d snapshots during %d BAs: %d before, %d after, %d torn\n", reads, kRounds,
+              seen_before, seen_after, torn);
+  EXPECT_EQ(torn, 0);
+  EXPECT_TRUE(sameState(stateOf(map), after));
+}
+
+TEST(BundleAdjustmentTest, InertialWindowNeedsTheImuContext) {
+  test::MappingScene scene = test::makeMappingScene({});
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  window.optimised = {scene.ids[1]};
+  window.fixed = {scene.ids[0]};
+  EXPECT_THROW(bundleAdjust(*scene.map, window, {scene.camera}, {}, {}), std::invalid_argument);
+}
 
 }  // namespace
 }  // namespace superdyna::mapping
