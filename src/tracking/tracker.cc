@@ -658,8 +658,8 @@ bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {
 int Tracker::referenceTrackedPoints() const {
   std::vector<map::MapPointId> ids;
   map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) { ids = kf.map_points; });
-  // Like ORB-SLAM: once the map has a few keyframes, count only points seen by two or more.
-  const int min_observations = map_->numKeyFrames() > 2 ? 2 : 1;
+  // As ORB-SLAM: points seen by three keyframes or more (two while the map has two keyframes).
+  const int min_observations = map_->numKeyFrames() > 2 ? 3 : 2;
   int tracked = 0;
   for (const map::MapPointId id : ids) {
     if (id == map::kNoMapPoint) continue;
