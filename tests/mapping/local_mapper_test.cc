@@ -43,20 +43,33 @@ void scaleAbout(test::MappingScene& scene, const std::vector<map::KeyFrameId>& i
   }
 }
 
+/// Options of a monocular local BA over a 4-keyframe window (no keyframe culling).
+LocalMapperOptions windowOfFour(int fixed_observers) {
+  LocalMapperOptions options;
+  options.window_keyframes = 4;
+  options.iterations = 20;
+  options.fixed_observer_keyframes = fixed_observers;
+  options.keyframe_culling.enabled = false;
+  return options;
+}
+
+/// The local BA window of the newest keyframe (as LocalMapper chooses it), sorted.
+std::vector<map::KeyFrameId> windowOf(const test::MappingScene& scene, std::size_t size) {
+  std::vector<map::KeyFrameId> window =
+      scene.map->bestCovisibleKeyFrames(scene.ids.back(), static_cast<int>(size) - 1);
+  window.push_back(scene.ids.back());
+  std::sort(window.begin(), window.end());
+  return window;
+}
+
 TEST(LocalMapper, MonocularLocalBaTakesItsScaleFromTheKeyFramesOutsideTheWindow) {
   // A monocular window with only its oldest keyframe fixed has a free scale (7-DoF gauge): a
   // window scaled about that keyframe reprojects exactly, so the BA used to leave it 2 % off.
   // The keyframes outside the window that observe its points pin it back to the map.
   test::MappingScene scene = test::makeMappingScene({});
-  LocalMapperOptions options;
-  options.window_keyframes = 4;
-  options.iterations = 20;
-  options.keyframe_culling.enabled = false;
-  LocalMapper mapper(options, {scene.camera});
+  LocalMapper mapper(windowOfFour(LocalMapperOptions{}.fixed_observer_keyframes), {scene.camera});
   const map::KeyFrameId newest = scene.ids.back();
-  std::vector<map::KeyFrameId> window = scene.map->bestCovisibleKeyFrames(newest, 3);
-  window.push_back(newest);
-  std::sort(window.begin(), window.end());
+  const std::vector<map::KeyFrameId> window = windowOf(scene, 4);
   ASSERT_EQ(window.size(), 4u);
   ASSERT_NE(window.front(), scene.ids.front());
   scaleAbout(scene, window, scene.map->keyFramePose(window.front())->t, 1.02);
@@ -81,16 +94,9 @@ TEST(LocalMapper, WithoutObserversTheOldestWindowKeyFrameHoldsTheGauge) {
   // scale of a monocular window is then held only by where the BA starts, as in ORB-SLAM's local
   // BA without outside observers), and the window's other keyframes return to the truth.
   test::MappingScene scene = test::makeMappingScene({});
-  LocalMapperOptions options;
-  options.window_keyframes = 4;
-  options.iterations = 20;
-  options.fixed_observer_keyframes = 0;
-  options.keyframe_culling.enabled = false;
-  LocalMapper mapper(options, {scene.camera});
+  LocalMapper mapper(windowOfFour(0), {scene.camera});
   const map::KeyFrameId newest = scene.ids.back();
-  std::vector<map::KeyFrameId> window = scene.map->bestCovisibleKeyFrames(newest, 3);
-  window.push_back(newest);
-  std::sort(window.begin(), window.end());
+  const std::vector<map::KeyFrameId> window = windowOf(scene, 4);
   const std::vector<map::KeyFrameId> held(window.begin(), window.begin() + 1);
   const std::vector<map::KeyFrameId> moved(window.begin() + 2, window.end());
   for (const map::KeyFrameId id : moved) {
