@@ -144,8 +144,9 @@ std::vector<map::MapPointId> PointTriangulator::createPoints(map::Map& map,
     view.free.resize(view.keyframe.size());
     for (std::size_t i = 0; i < view.keyframe.size(); ++i) {
       // A keypoint whose undistortion failed has no ray to triangulate.
-      view.free[i] =
-          view.keyframe.map_points[i] == map::kNoMapPoint && view.keyframe.keypoints[i].valid();
+      const map::KeyFrameKeypoint& k = view.keyframe.keypoints[i];
+      view.free[i] = view.keyframe.map_points[i] == map::kNoMapPoint && k.valid() &&
+                     !(options_.skip_stereo_keypoints && k.hasStereo());
     }
     return view;
   };

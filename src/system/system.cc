@@ -74,6 +74,8 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
+  // Stereo rigs triangulate between keyframes only what stereo cannot measure.
+  options.mapping.triangulation.skip_stereo_keypoints = !isMonocular(options.mode);
   applyClassWiseMatching(options);
   options.validate();
   return options;

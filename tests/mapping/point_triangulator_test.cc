@@ -2,8 +2,8 @@
 
 #include <gtest/gtest.h>
 
-#include <limits>
 #include <iostream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <random>
 
@@ -125,6 +125,31 @@ TEST_F(TwoKeyFrameScene, TriangulatesTheFreeKeypointsAtTheirTruePositions) {
 /// The scene with keypoints whose undistortion failed (normalised coordinates NaN, as the tracker
 /// stores them): free point kShared's keypoint in keyframe 0, and in keyframe 0 a second keypoint
 /// with free point kShared + 1's descriptor (a look-alike far out in the image).
+/// Keyframe 0's free keypoints at even indices carry a stereo depth.
+class StereoKeyFrameScene : public TwoKeyFrameScene {
+ protected:
+  void editKeyFrame(int k, map::KeyFrame& kf) const override {
+    if (k != 0) return;
+    for (std::size_t i = kShared; i < kf.keypoints.size(); i += 2)
+      kf.keypoints[i].depth_m = 5.0;
+  }
+};
+
+TEST_F(StereoKeyFrameScene, StereoRigsTriangulateOnlyKeypointsWithoutStereoDepth) {
+  // Without the option more than 170 of the 200 free keypoints become points (test above); half
+  // of them have a stereo depth in keyframe 0 here.
+  PointTriangulatorOptions options;
+  options.skip_stereo_keypoints = true;
+  const std::vector<map::MapPointId> created =
+      PointTriangulator(options, camera()).createPoints(map, ids[1]);
+  EXPECT_GT(created.size(), 70u);
+  EXPECT_LE(created.size(), static_cast<std::size_t>(kFree / 2));
+  for (const map::MapPointId id : created) {
+    const int index = map.mapPoint(id)->observations.at(ids[0]);
+    EXPECT_FALSE(map.keyFrame(ids[0])->keypoints[static_cast<std::size_t>(index)].hasStereo());
+  }
+}
+
 class FailedUndistortionScene : public TwoKeyFrameScene {
  protected:
   static constexpr int kFailed = kShared;

@@ -34,6 +34,10 @@ struct PointTriangulatorOptions {
   double scale_factor = 1.2;  ///< Pyramid scale between octaves, > 1.
   /// Match only keypoints of one class_id (the System sets it from features.class_wise_matching).
   bool same_class_only = false;
+  /// Triangulate only keypoints without a stereo depth in either keyframe (stereo rigs: the far
+  /// points stereo cannot measure; the others are the tracker's stereo points or were left out on
+  /// purpose). The System sets it in stereo modes.
+  bool skip_stereo_keypoints = false;
   /// Throws OptionError naming the first invalid field (prefix "mapping.triangulation_").
   void validate() const;
   bool operator==(const PointTriangulatorOptions&) const = default;
