@@ -159,11 +159,21 @@ double StereoMatcher::epipolarErrorPx(const Eigen::Vector3d& f0, const Eigen::Ve
   return std::abs(line.dot(f1 / f1.z())) / norm * focal1_px_;
 }
 
+Eigen::Vector3d StereoMatcher::ontoEpipolarLine(const Eigen::Vector3d& f0,
+                                                const Eigen::Vector3d& f1) const {
+  const Eigen::Vector3d line = essential_ * f0;
+  const double norm2 = line.x() * line.x() + line.y() * line.y();
+  if (!(f1.z() > 0.0) || norm2 < 1e-24) return f1;
+  const Eigen::Vector3d x = f1 / f1.z();
+  return x - line.dot(x) / norm2 * Eigen::Vector3d(line.x(), line.y(), 0.0);
+}
+
 std::optional<Eigen::Vector3d> StereoMatcher::triangulate(const Eigen::Vector3d& f0,
                                                           const Eigen::Vector3d& f1) const {
-  // Closest points s * d0 and c + t * d1 of the two rays (cam0 frame).
+  // Closest points s * d0 and c + t * d1 of the two rays (cam0 frame), the right ray first moved
+  // into the epipolar plane so that the rays meet.
   const Eigen::Vector3d d0 = f0.normalized();
-  const Eigen::Vector3d d1 = (R_c0_c1_ * f1).normalized();
+  const Eigen::Vector3d d1 = (R_c0_c1_ * ontoEpipolarLine(f0, f1)).normalized();
   const double b = d0.dot(d1);
   const double denominator = 1.0 - b * b;
   if (denominator < kMinParallaxSin2) return std::nullopt;

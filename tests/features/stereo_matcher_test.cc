@@ -85,6 +85,31 @@ TEST(StereoMatcherTest, EpipolarErrorAndTriangulationAreExactForTrueBearings) {
   EXPECT_FALSE(matcher.triangulate(Eigen::Vector3d::UnitZ(), T_c1_c0.q * Eigen::Vector3d::UnitZ()));
 }
 
+TEST(StereoMatcherTest, KeypointsOffTheEpipolarLineKeepTheirDisparityDepth) {
+  // Coarse-octave keypoint rows are quantised to the level's pixel (1.2^7 = 3.6 px at octave 7):
+  // the right keypoint of a far point sits a pixel or more off the epipolar line. The depth must
+  // follow the disparity along the line; the midpoint of the raw skew rays put it much nearer.
+  const auto [cam0, cam1] = idealRig();
+  const StereoMatcher matcher(cam0, cam1);
+  const SE3d& T_c1_c0 = matcher.T_c1_c0();
+  for (const double depth : {5.0, 20.0, 40.0}) {
+    const Eigen::Vector3d p(1.5, -0.5, depth);
+    const Eigen::Vector3d x1 = (T_c1_c0 * p) / (T_c1_c0 * p).z();
+    for (const double dy_px : {-1.2, 1.2, 2.4}) {
+      const Eigen::Vector3d off = x1 + Eigen::Vector3d(0.0, dy_px / cam1.fy, 0.0);
+      // The rig's epipolar lines slope by about 1 %: the closest point on the line lies that
+      // fraction of dy along it from the projection.
+      EXPECT_LT((matcher.ontoEpipolarLine(p.normalized(), off) - x1).norm() * cam1.fx, 0.03)
+          << depth << " m, " << dy_px << " px";
+      const auto triangulated = matcher.triangulate(p.normalized(), off.normalized());
+      ASSERT_TRUE(triangulated) << depth << " m, " << dy_px << " px";
+      EXPECT_NEAR(triangulated->z(), depth, 0.02 * depth) << dy_px << " px off the line";
+      // On the left ray: the left keypoint keeps its pixel.
+      EXPECT_LT(triangulated->normalized().cross(p.normalized()).norm(), 1e-9);
+    }
+  }
+}
+
 /// Matches of exact projections of `count` random points (3-8 m ahead, random unit float
 /// descriptors, one keypoint per point in each image) on the rig with cam1 at T_c0_c1 (no lens
 /// distortion); returns how many pair keypoint k with keypoint k.
@@ -491,6 +516,43 @@ TEST_F(SyntheticStereoTest, RectifiedPathGivesSubPixelDisparities) {
   EXPECT_GT(matches.size(), 300u);
   EXPECT_LT(quantile(errors, 0.5), 0.2);
   EXPECT_GT(fraction(within_half, matches.size()), 0.85);
+}
+
+/// Mean of some values (nan when empty).
+double mean(const std::vector<double>& values) {
+  if (values.empty()) return std::nan("");
+  double sum = 0.0;
+  for (const double v : values)
+    sum += v;
+  return sum / static_cast<double>(values.size());
+}
+
+TEST_F(SyntheticStereoTest, FarDisparitiesAreNotBiasedLarge) {
+  // Signed disparity error (estimate - truth) of the inliers (within two level-scaled pixels),
+  // by rendered depth: far points came out too near when the depth came from the midpoint of
+  // the raw skew rays (mean +0.13 px at 12-25 m, +0.23 px at 25-70 m).
+  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  OrbExtractor extractor;
+  const FeatureSet left = extractor.extract(io::loadImage(frame_.cam0, cam0));
+  const FeatureSet right = extractor.extract(io::loadImage(frame_.cam1, cam1));
+  const StereoMatcher matcher(cam0, cam1);
+  std::vector<double> mid, far;  // 12-25 m, 25-70 m
+  for (const StereoMatch& m : matcher.match(left, right)) {
+    const Keypoint& kp = left.keypoints[static_cast<std::size_t>(m.left)];
+    const double truth = groundTruthDepth(kp.pixel, m.depth_m);
+    const double error = cam0.fx * baseline_m_ * (1.0 / m.depth_m - 1.0 / truth);
+    if (std::abs(error) > 2.0 * std::pow(1.2, kp.octave)) continue;
+    if (truth >= 12.0 && truth < 25.0) mid.push_back(error);
+    if (truth >= 25.0 && truth < 70.0) far.push_back(error);
+  }
+  std::cout << "signed disparity error, mean (median): 12-25 m " << mean(mid) << " ("
+            << quantile(mid, 0.5) << ") px over " << mid.size() << " matches, 25-70 m " << mean(far)
+            << " (" << quantile(far, 0.5) << ") px over " << far.size() << "\n";
+  EXPECT_GT(mid.size(), 200u);
+  EXPECT_GT(far.size(), 80u);
+  EXPECT_LT(std::abs(mean(mid)), 0.1);
+  EXPECT_LT(std::abs(mean(far)), 0.2);
 }
 
 }  // namespace

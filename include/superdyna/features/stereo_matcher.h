@@ -9,12 +9,12 @@
 // max_octave_difference, (3) the keypoint angles agree: both views of a rigid rig see a patch
 // with the same orientation, up to the rig's in-plane rotation (roll of cam1 about cam0's optical
 // axis), so |angle_right - angle_left - roll| <= max_angle_difference_deg, and (4) the two rays
-// triangulate (midpoint method) in front of both cameras with a cam0 depth in
-// [min_depth_m, max_depth_m], and (5) with same_class_only, both keypoints carry the same
-// class_id. The candidate with the smallest descriptor distance (Hamming for binary, Euclidean
-// for float descriptors; matcher.h: DescriptorMetric) wins if it passes the distance bound of its
-// type (max_distance, max_l2_distance) and the ratio test; each right keypoint is used at most
-// once (by its closest left keypoint).
+// triangulate (the right ray moved onto the epipolar plane, see triangulate) in front of both
+// cameras with a cam0 depth in [min_depth_m, max_depth_m], and (5) with same_class_only, both
+// keypoints carry the same class_id. The candidate with the smallest descriptor distance (Hamming
+// for binary, Euclidean for float descriptors; matcher.h: DescriptorMetric) wins if it passes the
+// distance bound of its type (max_distance, max_l2_distance) and the ratio test; each right
+// keypoint is used at most once (by its closest left keypoint).
 //
 // RectifiedStereoMatcher handles rectified stereo (KITTI-like: same intrinsics, the right camera
 // shifted by the baseline along x): candidates on the same row with consistent octave and angle,
@@ -79,8 +79,15 @@ class StereoMatcher {
   /// Epipolar distance [px] of the bearing pair (f0 in cam0, f1 in cam1); +inf when f1 points
   /// backwards (z <= 0) or f0 is parallel to the baseline.
   double epipolarErrorPx(const Eigen::Vector3d& f0, const Eigen::Vector3d& f1) const;
-  /// Midpoint of the closest points of the two rays, in cam0 [m]; nullopt when the rays are
-  /// (nearly) parallel or the closest points lie behind either camera.
+  /// f1 (z > 0) moved to its closest point on the epipolar line E * f0 in cam1's normalised
+  /// image plane, as (x, y, 1); f1 unchanged when it points backwards or f0 lies on the baseline.
+  Eigen::Vector3d ontoEpipolarLine(const Eigen::Vector3d& f0, const Eigen::Vector3d& f1) const;
+  /// The point where the ray f0 meets the ray ontoEpipolarLine(f0, f1), in cam0 [m] (the midpoint
+  /// of their closest points); nullopt when the rays are (nearly) parallel or the point lies
+  /// behind either camera. Only the disparity along the epipolar line sets the depth: the midpoint
+  /// of the raw rays of keypoints dy pixels off the line would sit at a disparity of about
+  /// (dx^2 + dy^2) / dx instead of dx, too near, and most so for far points seen at coarse
+  /// octaves, whose keypoint rows are quantised to the level's pixel.
   std::optional<Eigen::Vector3d> triangulate(const Eigen::Vector3d& f0,
                                              const Eigen::Vector3d& f1) const;
 
