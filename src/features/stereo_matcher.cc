@@ -159,11 +159,21 @@ double StereoMatcher::epipolarErrorPx(const Eigen::Vector3d& f0, const Eigen::Ve
   return std::abs(line.dot(f1 / f1.z())) / norm * focal1_px_;
 }
 
+Eigen::Vector3d StereoMatcher::ontoEpipolarLine(const Eigen::Vector3d& f0,
+                                                const Eigen::Vector3d& f1) const {
+  const Eigen::Vector3d line = essential_ * f0;
+  const double norm2 = line.x() * line.x() + line.y() * line.y();
+  if (!(f1.z() > 0.0) || norm2 < 1e-24) return f1;
+  const Eigen::Vector3d x = f1 / f1.z();
+  return x - line.dot(x) / norm2 * Eigen::Vector3d(line.x(), line.y(), 0.0);
+}
+
 std::optional<Eigen::Vector3d> StereoMatcher::triangulate(const Eigen::Vector3d& f0,
                                                           const Eigen::Vector3d& f1) const {
-  // Closest points s * d0 and c + t * d1 of the two rays (cam0 frame).
+  // Closest points s * d0 and c + t * d1 of the two rays (cam0 frame), the right ray first moved
+  // into the epipolar plane so that the rays meet.
   const Eigen::Vector3d d0 = f0.normalized();
-  const Eigen::Vector3d d1 = (R_c0_c1_ * f1).normalized();
+  const Eigen::Vector3d d1 = (R_c0_c1_ * ontoEpipolarLine(f0, f1)).normalized();
   const double b = d0.dot(d1);
   const double denominator = 1.0 - b * b;
   if (denominator < kMinParallaxSin2) return std::nullopt;
@@ -213,10 +223,7 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
       const double distance = distance_of(static_cast<int>(i), static_cast<int>(j));
       if (distance >= second) continue;  // cannot change the best two
       const auto p = triangulate(*f0, rb.f);
-      if (!p || p->z() < options_.min_depth_m || p->z() > options_.max_depth_m ||
-          !((T_c1_c0_ * *p).z() > 0.0)) {
-        continue;
-      }
+      if (!p || !acceptsPoint(*p)) continue;
       if (distance < best) {
         second = best;
         best = distance;
@@ -225,7 +232,8 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
                      distance,
                      residual / line_norm * focal1_px_,
                      *p,
-                     p->z()};
+                     p->z(),
+                     candidate_kp.pixel};
       } else {
         second = distance;
       }
@@ -235,6 +243,146 @@ std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left,
     }
   }
   return uniqueRight(matches, right.size());
+}
+
+bool StereoMatcher::acceptsPoint(const Eigen::Vector3d& p_c0) const {
+  return p_c0.z() >= options_.min_depth_m && p_c0.z() <= options_.max_depth_m &&
+         (T_c1_c0_ * p_c0).z() > 0.0;
+}
+
+namespace {
+
+constexpr int kSadHalfWindow = 5;  ///< 11x11 windows.
+
+float sumAbsoluteDifferences(const std::vector<float>& a, const std::vector<float>& b) {
+  float sad = 0.0f;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    sad += std::abs(a[k] - b[k]);
+  return sad;
+}
+
+/// Sub-pixel offset of the minimum of the parabola through (-1, a), (0, b), (1, c); nullopt when
+/// the parabola is flat or opens downwards, or its minimum lies more than one sample away.
+std::optional<double> parabolaMinimum(double a, double b, double c) {
+  const double curvature = a + c - 2.0 * b;
+  if (!(curvature > 0.0)) return std::nullopt;
+  const double offset = (a - c) / (2.0 * curvature);
+  if (std::abs(offset) > 1.0) return std::nullopt;
+  return offset;
+}
+
+/// Bilinear sample of `image` (CV_8UC1) at (x, y); the caller keeps (x, y) one pixel inside.
+float bilinear(const cv::Mat& image, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double ax = x - x0, ay = y - y0;
+  const std::uint8_t* top = image.ptr<std::uint8_t>(y0);
+  const std::uint8_t* bottom = image.ptr<std::uint8_t>(y0 + 1);
+  const double value = (1.0 - ay) * ((1.0 - ax) * top[x0] + ax * top[x0 + 1]) +
+                       ay * ((1.0 - ax) * bottom[x0] + ax * bottom[x0 + 1]);
+  return static_cast<float>(value);
+}
+
+/// Zero-mean 11x11 window of `image` centred at the sub-pixel point `centre` (bilinear).
+std::vector<float> zeroMeanWindowAt(const cv::Mat& image, const Eigen::Vector2d& centre) {
+  std::vector<float> window;
+  window.reserve((2 * kSadHalfWindow + 1) * (2 * kSadHalfWindow + 1));
+  double sum = 0.0;
+  for (int dy = -kSadHalfWindow; dy <= kSadHalfWindow; ++dy) {
+    for (int dx = -kSadHalfWindow; dx <= kSadHalfWindow; ++dx) {
+      window.push_back(bilinear(image, centre.x() + dx, centre.y() + dy));
+      sum += window.back();
+    }
+  }
+  const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
+  for (float& v : window)
+    v -= mean;
+  return window;
+}
+
+/// Whether an 11x11 window at `centre` moved by up to `reach` pixels stays inside `image` with
+/// the bilinear neighbour.
+bool windowFits(const cv::Mat& image, const Eigen::Vector2d& centre, double reach) {
+  const double margin = kSadHalfWindow + reach + 1.0;
+  return centre.x() - margin >= 0.0 && centre.y() - margin >= 0.0 &&
+         centre.x() + margin <= image.cols - 1.0 && centre.y() + margin <= image.rows - 1.0;
+}
+
+/// Offset [steps] along `step` from `at` of the sub-pixel SAD minimum of the right window against
+/// the left window at `centre`, searched `search` steps either side; nullopt when the minimum
+/// lies at the end of the search or the SAD curve has no parabolic minimum there.
+std::optional<double> sadMinimumAlong(const cv::Mat& left_image, const Eigen::Vector2d& centre,
+                                      const cv::Mat& right_image, const Eigen::Vector2d& at,
+                                      const Eigen::Vector2d& step, int search) {
+  const std::vector<float> window = zeroMeanWindowAt(left_image, centre);
+  std::vector<float> sads;
+  for (int k = -search; k <= search; ++k)
+    sads.push_back(sumAbsoluteDifferences(window, zeroMeanWindowAt(right_image, at + k * step)));
+  const auto best = std::min_element(sads.begin(), sads.end());
+  const long index = best - sads.begin();
+  if (index == 0 || index + 1 == static_cast<long>(sads.size())) return std::nullopt;
+  const auto offset = parabolaMinimum(sads[static_cast<std::size_t>(index - 1)], *best,
+                                      sads[static_cast<std::size_t>(index + 1)]);
+  if (!offset) return std::nullopt;
+  return static_cast<double>(index - search) + *offset;
+}
+
+}  // namespace
+
+std::optional<StereoMatch> StereoMatcher::refined(const StereoMatch& match,
+                                                  const Keypoint& left_keypoint,
+                                                  const cv::Mat& left_image,
+                                                  const cv::Mat& right_image, int search_px) const {
+  const Eigen::Vector2d centre(std::round(left_keypoint.pixel.x()),
+                               std::round(left_keypoint.pixel.y()));
+  const auto f_centre = camera0_.unproject(centre);
+  const auto f_keypoint = camera0_.unproject(left_keypoint.pixel);
+  if (!f_centre || !f_keypoint || !windowFits(left_image, centre, 0.0)) return match;
+  // The epipolar curve near the match: the window centre's ray at the match depth, and nearer.
+  const Eigen::Vector3d p_centre = *f_centre * (match.depth_m / f_centre->z());
+  const auto at = camera1_.project(T_c1_c0_ * p_centre);
+  const auto nearer = camera1_.project(T_c1_c0_ * (0.5 * p_centre));
+  if (!at || !nearer || !windowFits(right_image, *at, search_px)) return match;
+  const Eigen::Vector2d step = (*at - *nearer).normalized();  // towards smaller disparity
+  const auto offset = sadMinimumAlong(left_image, centre, right_image, *at, step, search_px);
+  if (!offset) return match;
+  const Eigen::Vector2d right_centre = *at + *offset * step;
+  const auto f_right = camera1_.unproject(right_centre);
+  if (!f_right) return std::nullopt;
+  const auto p = triangulate(*f_centre, *f_right);
+  if (!p) return std::nullopt;
+  StereoMatch out = match;
+  out.p_c0 = *f_keypoint * (p->z() / f_keypoint->z());  // the keypoint's own ray, that depth
+  out.depth_m = out.p_c0.z();
+  if (!acceptsPoint(out.p_c0)) return std::nullopt;
+  const auto right_pixel = camera1_.project(T_c1_c0_ * out.p_c0);
+  if (!right_pixel) return std::nullopt;
+  out.right_pixel = *right_pixel;
+  return out;
+}
+
+std::vector<StereoMatch> StereoMatcher::match(const FeatureSet& left, const FeatureSet& right,
+                                              const cv::Mat& left_image, const cv::Mat& right_image,
+                                              double level_scale_factor) const {
+  if (!(level_scale_factor >= 1.0)) {
+    throw OptionError("level_scale_factor",
+                      fmt::format("must be >= 1, got {}", level_scale_factor));
+  }
+  for (const auto& [image, features] : {std::pair{&left_image, &left}, {&right_image, &right}}) {
+    if (image->type() != CV_8UC1 || image->size() != features->image_size) {
+      throw InputError(fmt::format(
+          "StereoMatcher::match: images must be CV_8UC1 of the features' size {}x{}, got {}x{}",
+          features->image_size.width, features->image_size.height, image->cols, image->rows));
+    }
+  }
+  std::vector<StereoMatch> out;
+  for (const StereoMatch& m : match(left, right)) {
+    const Keypoint& kp = left.keypoints[static_cast<std::size_t>(m.left)];
+    const int search =
+        static_cast<int>(std::ceil(std::pow(level_scale_factor, std::max(0, kp.octave)))) + 1;
+    const auto r = refined(m, kp, left_image, right_image, search);
+    if (r) out.push_back(*r);
+  }
+  return out;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -258,23 +406,6 @@ std::vector<float> zeroMeanWindow(const cv::Mat& image, int x, int y, int half) 
   for (float& v : window)
     v -= mean;
   return window;
-}
-
-float sumAbsoluteDifferences(const std::vector<float>& a, const std::vector<float>& b) {
-  float sad = 0.0f;
-  for (std::size_t k = 0; k < a.size(); ++k)
-    sad += std::abs(a[k] - b[k]);
-  return sad;
-}
-
-/// Sub-pixel offset of the minimum of the parabola through (-1, a), (0, b), (1, c); nullopt when
-/// the parabola is flat or opens downwards, or its minimum lies more than one sample away.
-std::optional<double> parabolaMinimum(double a, double b, double c) {
-  const double curvature = a + c - 2.0 * b;
-  if (!(curvature > 0.0)) return std::nullopt;
-  const double offset = (a - c) / (2.0 * curvature);
-  if (std::abs(offset) > 1.0) return std::nullopt;
-  return offset;
 }
 
 struct Refinement {

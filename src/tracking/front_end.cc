@@ -104,7 +104,7 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   frame.right_normalized.assign(n, std::nullopt);
   for (std::size_t i = 0; i < n; ++i)
     frame.normalized[i] = normalizedOf(camera0_, frame.features.keypoints[i].pixel);
-  if (stereo) matchStereo(right, frame);
+  if (stereo) matchStereo(right, bundle, frame);
   frame.stereo_ms = millisecondsSince(start);
   return frame;
 }
@@ -115,12 +115,18 @@ features::FeatureSet FrontEnd::extractRight(const io::FrameBundle& bundle) {
   return right;
 }
 
-void FrontEnd::matchStereo(const features::FeatureSet& right, Frame& frame) const {
-  for (const features::StereoMatch& m : stereo_matcher_->match(frame.features, right)) {
+void FrontEnd::matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
+                           Frame& frame) const {
+  const std::vector<features::StereoMatch> matches =
+      stereo_matcher_->options().refine_on_images
+          ? stereo_matcher_->match(frame.features, right, bundle.image0, bundle.image1,
+                                   pyramid_.scale_factor)
+          : stereo_matcher_->match(frame.features, right);
+  for (const features::StereoMatch& m : matches) {
     const auto i = static_cast<std::size_t>(m.left);
     if (!frame.normalized[i].allFinite()) continue;
     const features::Keypoint& partner = right.keypoints[static_cast<std::size_t>(m.right)];
-    const Eigen::Vector2d r = normalizedOf(stereo_matcher_->camera1(), partner.pixel);
+    const Eigen::Vector2d r = normalizedOf(stereo_matcher_->camera1(), m.right_pixel);
     if (!r.allFinite()) continue;
     if (partner.class_id != frame.features.keypoints[i].class_id) ++frame.cross_class_stereo;
     frame.depth_m[i] = m.depth_m;

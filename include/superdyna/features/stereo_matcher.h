@@ -9,12 +9,12 @@
 // max_octave_difference, (3) the keypoint angles agree: both views of a rigid rig see a patch
 // with the same orientation, up to the rig's in-plane rotation (roll of cam1 about cam0's optical
 // axis), so |angle_right - angle_left - roll| <= max_angle_difference_deg, and (4) the two rays
-// triangulate (midpoint method) in front of both cameras with a cam0 depth in
-// [min_depth_m, max_depth_m], and (5) with same_class_only, both keypoints carry the same
-// class_id. The candidate with the smallest descriptor distance (Hamming for binary, Euclidean
-// for float descriptors; matcher.h: DescriptorMetric) wins if it passes the distance bound of its
-// type (max_distance, max_l2_distance) and the ratio test; each right keypoint is used at most
-// once (by its closest left keypoint).
+// triangulate (the right ray moved onto the epipolar plane, see triangulate) in front of both
+// cameras with a cam0 depth in [min_depth_m, max_depth_m], and (5) with same_class_only, both
+// keypoints carry the same class_id. The candidate with the smallest descriptor distance (Hamming
+// for binary, Euclidean for float descriptors; matcher.h: DescriptorMetric) wins if it passes the
+// distance bound of its type (max_distance, max_l2_distance) and the ratio test; each right
+// keypoint is used at most once (by its closest left keypoint).
 //
 // RectifiedStereoMatcher handles rectified stereo (KITTI-like: same intrinsics, the right camera
 // shifted by the baseline along x): candidates on the same row with consistent octave and angle,
@@ -49,6 +49,8 @@ struct StereoMatchOptions {
   double min_depth_m = 0.1;      ///< Nearest accepted depth (z in cam0) [m], > 0.
   double max_depth_m = 60.0;     ///< Farthest accepted depth [m], > min_depth_m.
   bool same_class_only = false;  ///< Pair only keypoints of one class_id (file comment).
+  /// Callers that hold the images refine the matches on them (match with images).
+  bool refine_on_images = true;
 
   void validate() const;
   bool operator==(const StereoMatchOptions&) const = default;
@@ -62,6 +64,8 @@ struct StereoMatch {
   double epipolar_error_px = 0.0;                  ///< As defined in the file comment [px].
   Eigen::Vector3d p_c0 = Eigen::Vector3d::Zero();  ///< Triangulated point in cam0 [m].
   double depth_m = 0.0;                            ///< p_c0.z() [m].
+  /// Where p_c0 appears in cam1 [px]: the right keypoint's pixel, or its refinement.
+  Eigen::Vector2d right_pixel = Eigen::Vector2d::Zero();
 };
 
 /// Matcher for an unrectified stereo rig; see the file comment.
@@ -75,12 +79,32 @@ class StereoMatcher {
   /// Matches ordered by left index. Keypoints whose pixel cannot be unprojected are skipped.
   /// Throws InputError unless both sets have one descriptor type and length.
   std::vector<StereoMatch> match(const FeatureSet& left, const FeatureSet& right) const;
+  /// As match(left, right), then each match refined on the images the features came from
+  /// (CV_8UC1, the features' size; InputError otherwise): the right position moves along the
+  /// epipolar curve to the minimum of the zero-mean sum of absolute differences (SAD) of an
+  /// 11x11 window around the rounded left pixel, with sub-pixel parabola fit, searched
+  /// ceil(level_scale_factor^octave) + 1 pixels either side (the extractor's scale between
+  /// levels, >= 1). Keypoint positions are quantised to their level's pixel, so far points at
+  /// coarse octaves get disparities multiple of that step; those that round to zero or below do not
+  /// triangulate, which left the kept ones too large on average. A match whose search finds no
+  /// interior minimum keeps its keypoint position; one whose refined rays no longer triangulate
+  /// within the depth range goes.
+  std::vector<StereoMatch> match(const FeatureSet& left, const FeatureSet& right,
+                                 const cv::Mat& left_image, const cv::Mat& right_image,
+                                 double level_scale_factor) const;
 
   /// Epipolar distance [px] of the bearing pair (f0 in cam0, f1 in cam1); +inf when f1 points
   /// backwards (z <= 0) or f0 is parallel to the baseline.
   double epipolarErrorPx(const Eigen::Vector3d& f0, const Eigen::Vector3d& f1) const;
-  /// Midpoint of the closest points of the two rays, in cam0 [m]; nullopt when the rays are
-  /// (nearly) parallel or the closest points lie behind either camera.
+  /// f1 (z > 0) moved to its closest point on the epipolar line E * f0 in cam1's normalised
+  /// image plane, as (x, y, 1); f1 unchanged when it points backwards or f0 lies on the baseline.
+  Eigen::Vector3d ontoEpipolarLine(const Eigen::Vector3d& f0, const Eigen::Vector3d& f1) const;
+  /// The point where the ray f0 meets the ray ontoEpipolarLine(f0, f1), in cam0 [m] (the midpoint
+  /// of their closest points); nullopt when the rays are (nearly) parallel or the point lies
+  /// behind either camera. Only the disparity along the epipolar line sets the depth: the midpoint
+  /// of the raw rays of keypoints dy pixels off the line would sit at a disparity of about
+  /// (dx^2 + dy^2) / dx instead of dx, too near, and most so for far points seen at coarse
+  /// octaves, whose keypoint rows are quantised to the level's pixel.
   std::optional<Eigen::Vector3d> triangulate(const Eigen::Vector3d& f0,
                                              const Eigen::Vector3d& f1) const;
 
@@ -95,6 +119,13 @@ class StereoMatcher {
   double rollDeg() const { return roll_deg_; }
 
  private:
+  /// The refinement of one match (see match with images); nullopt when it must go.
+  std::optional<StereoMatch> refined(const StereoMatch& match, const Keypoint& left_keypoint,
+                                     const cv::Mat& left_image, const cv::Mat& right_image,
+                                     int search_px) const;
+  /// p (cam0) accepted as a stereo point: depth within range and in front of cam1.
+  bool acceptsPoint(const Eigen::Vector3d& p_c0) const;
+
   CameraModel camera0_, camera1_;
   SE3d T_c1_c0_;
   Eigen::Matrix3d essential_;

@@ -63,7 +63,8 @@ class FrontEnd {
  private:
   /// Features of the right image, labelled with the right instance mask when there is one.
   features::FeatureSet extractRight(const io::FrameBundle& bundle);
-  void matchStereo(const features::FeatureSet& right, Frame& frame) const;
+  void matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
+                   Frame& frame) const;
 
   CameraModel camera0_;
   features::PyramidLayout pyramid_;
