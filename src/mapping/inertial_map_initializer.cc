@@ -34,6 +34,12 @@ void InertialMapInitOptions::validate() const {
 
 namespace {
 
+/// A monocular map has median scene depth 1 (two-view initialisation): a smaller scale than this
+/// would put the scene within 10 cm of the camera. As ORB-SLAM3, such an estimate (the solver's
+/// answer when the visual trajectory and the IMU disagree, e.g. over a short smooth window) is
+/// refused and the initialisation retried at the next keyframe.
+constexpr double kMinScale = 0.1;
+
 /// The latest run of keyframes linked to their predecessors with usable IMU samples, in time
 /// order, with the preintegrations between them (at zero bias: the first guess).
 struct KeyFrameChain {
@@ -167,6 +173,13 @@ InertialMapInitResult initializeInertialMap(map::Map& map, const SE3d& T_b_i,
   }
   if (!std::isfinite(result.estimate.scale) || !(result.estimate.scale > 0.0)) {
     result.reason = "non-positive scale estimate";
+    return result;
+  }
+  if (options.estimate_scale && result.estimate.scale < kMinScale) {
+    result.reason = fmt::format(
+        "scale estimate {:.3g} below {:.3g}: the visual motion does not "
+        "fit the IMU",
+        result.estimate.scale, kMinScale);
     return result;
   }
   result.T_new_old.s = result.estimate.scale;

@@ -33,6 +33,12 @@ void MonoInitializerOptions::validate() const {
   if (!(max_reference_age_s > 0.0)) {
     throw OptionError("mono_init.max_reference_age_s", "must be > 0");
   }
+  if (!(max_gyro_rotation_error_deg >= 0.0)) {
+    throw OptionError("mono_init.max_gyro_rotation_error_deg", "must be >= 0");
+  }
+  if (!(gyro_bias_allowance_deg_s >= 0.0)) {
+    throw OptionError("mono_init.gyro_bias_allowance_deg_s", "must be >= 0");
+  }
   if (!(sigma0_px > 0.0)) throw OptionError("mono_init.sigma0_px", "must be > 0");
   if (!(scale_factor >= 1.0)) throw OptionError("mono_init.scale_factor", "must be >= 1");
 }
@@ -333,7 +339,16 @@ std::vector<features::Match> MonoInitializer::matchToReference(const Frame& fram
   return usable;
 }
 
-std::optional<MonoInitialization> MonoInitializer::addFrame(const Frame& frame) {
+bool MonoInitializer::agreesWithGyro(const SE3d& T_c0_c1, const Eigen::Matrix3d& R_c0_c1_gyro,
+                                     TimeNs t_ns) const {
+  const double error_deg = degrees(rotationAngle(T_c0_c1.rotation().transpose() * R_c0_c1_gyro));
+  const double dt_s = nsToSeconds(t_ns - reference_->t_ns);
+  return error_deg <=
+         options_.max_gyro_rotation_error_deg + options_.gyro_bias_allowance_deg_s * dt_s;
+}
+
+std::optional<MonoInitialization> MonoInitializer::addFrame(
+    const Frame& frame, const std::optional<Eigen::Matrix3d>& R_c0_c1_gyro) {
   last_failure_.clear();
   if (!reference_ || frame.t_ns - reference_->t_ns > secondsToNs(options_.max_reference_age_s)) {
     setReference(frame);
@@ -361,6 +376,10 @@ std::optional<MonoInitialization> MonoInitializer::addFrame(const Frame& frame) 
   if (!two_view.ok) {
     last_failure_ = two_view.failure;
     return std::nullopt;
+  }
+  if (R_c0_c1_gyro && !agreesWithGyro(two_view.T_c0_c1, *R_c0_c1_gyro, frame.t_ns)) {
+    last_failure_ = "rotation disagrees with the gyroscope";
+    return std::nullopt;  // the reference stays: a later frame has more parallax
   }
   MonoInitialization init{*reference_, two_view.T_c0_c1, {}};
   for (std::size_t k = 0; k < matches.size(); ++k) {

@@ -10,7 +10,25 @@ namespace superdyna::tracking {
 
 void Tracker::initializeMono(const Frame& frame, TrackingResult& result) {
   result.state = TrackingState::kInitializing;
-  if (const auto init = mono_initializer_->addFrame(frame)) buildMonoMap(*init, frame, result);
+  if (const auto init = mono_initializer_->addFrame(frame, gyroRotationSinceReference(frame))) {
+    buildMonoMap(*init, frame, result);
+  }
+}
+
+std::optional<Eigen::Matrix3d> Tracker::gyroRotationSinceReference(const Frame& frame) const {
+  if (!imu_ || !mono_initializer_->hasReference()) return std::nullopt;
+  const TimeNs t0_ns = mono_initializer_->referenceTime();
+  const std::vector<io::ImuSample>& samples = imu_since_keyframe_.samples();
+  if (samples.size() < 2 || samples.front().t_ns > t0_ns || samples.back().t_ns < frame.t_ns ||
+      frame.t_ns <= t0_ns) {
+    return std::nullopt;  // the samples do not span the two views
+  }
+  imu::Preintegration preintegration(bias_, imu::ImuNoise::fromCalibration(*imu_));
+  preintegration.integrateBetween(samples, t0_ns, frame.t_ns);
+  const Eigen::Matrix3d R_b_i = imu_->T_b_i.rotation();
+  const Eigen::Matrix3d R_b0_b1 = R_b_i * preintegration.deltaRotation() * R_b_i.transpose();
+  const Eigen::Matrix3d R_b_c = T_b_c0_.rotation();
+  return R_b_c.transpose() * R_b0_b1 * R_b_c;
 }
 
 bool Tracker::buildMonoMap(const MonoInitialization& init, const Frame& frame,

@@ -110,6 +110,8 @@ mono_init:
   ambiguity_ratio: 0.7
   homography_score_ratio: 0.4
   max_reference_age_s: 1.5
+  max_gyro_rotation_error_deg: 0.7
+  gyro_bias_allowance_deg_s: 4
 mapping:
   window_keyframes: 6
   fixed_observer_keyframes: 12
@@ -176,7 +178,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 118u);  // every key of the nine sections
+  EXPECT_EQ(written.size(), 120u);  // every key of the nine sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -192,10 +192,34 @@ TEST(MonoInitializer, ClassWiseMatchingRefusesCrossClassPairs) {
   }
 }
 
+TEST(MonoInitializer, RefusesARotationTheGyroscopeContradicts) {
+  const std::vector<Eigen::Vector3d> points = scenePoints(400, 21, false);
+  const SE3d motion(expSO3(Eigen::Vector3d(0.0, -0.02, 0.0)), Eigen::Vector3d(0.25, 0.03, 0.05));
+  const auto background = [](std::size_t) { return features::kClassBackground; };
+  const Frame reference = viewOf(points, SE3d(), 0, background);
+  const Frame current = viewOf(points, motion, secondsToNs(0.1), background);
+  // 0.1 s apart: up to 0.5 + 5 * 0.1 = 1 deg from the gyroscope's rotation is accepted.
+  const Eigen::Matrix3d off = motion.rotation() * expSO3(Eigen::Vector3d(0.0, 0.0, 0.03));
+  MonoInitializer initializer({}, kFocalPx);
+  EXPECT_FALSE(initializer.addFrame(reference));
+  EXPECT_FALSE(initializer.addFrame(current, off));  // 1.7 deg off
+  EXPECT_EQ(initializer.lastFailure(), "rotation disagrees with the gyroscope");
+  ASSERT_TRUE(initializer.hasReference());  // kept for the next frame
+  EXPECT_EQ(initializer.referenceTime(), 0);
+  const std::optional<MonoInitialization> init = initializer.addFrame(current, motion.rotation());
+  ASSERT_TRUE(init) << initializer.lastFailure();
+  EXPECT_LT(degrees(rotationAngle(init->T_c0_c1.rotation().transpose() * motion.rotation())), 0.5);
+  EXPECT_GT(init->points.size(), 300u);
+}
+
 TEST(MonoInitializer, RejectsBadOptions) {
   MonoInitializerOptions options;
   options.min_parallax_deg = 0.0;
   test::expectError<OptionError>([&] { options.validate(); }, {"mono_init.min_parallax_deg"});
+  options = {};
+  options.max_gyro_rotation_error_deg = -1.0;
+  test::expectError<OptionError>([&] { options.validate(); },
+                                 {"mono_init.max_gyro_rotation_error_deg"});
   options = {};
   options.ratio = 1.5;
   test::expectError<OptionError>([&] { MonoInitializer(options, kFocalPx); }, {"mono_init.ratio"});

@@ -6,7 +6,9 @@
 #include <cstddef>
 #include <deque>
 #include <functional>
+#include <iostream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <random>
 #include <utility>
@@ -220,6 +222,67 @@ TEST(MonoTracker, MonoInertialWaitsForEachKeyFramesLocalBaOnceInitialised) {
   ASSERT_FALSE(not_waiting.pending_after_init.empty());
   for (const std::size_t pending : not_waiting.pending_after_init)
     EXPECT_GT(pending, 0u);
+}
+
+/// The first 1.5 s of the street sequence of issue 18 (street77: EuRoC V2_02 from 5 s, seed 77).
+const std::filesystem::path& streetV202Sequence() {
+  sim::SimulationOptions options =
+      test::flightOptions(1.5, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 77);
+  options.motion.trajectory_file =
+      test::sharedDir() / "data" / "trajectories" / "euroc" / "V2_02_medium.txt";
+  options.motion.start_s = 5.0;
+  return test::generatedSequence("tracker_test_street_v202", options);
+}
+
+/// The two-view map of a mono-inertial tracker on streetV202Sequence(): its keyframes' relative
+/// rotation against the truth's [deg] and the frame it was built at.
+struct TwoViewOutcome {
+  double rotation_error_deg = -1.0;
+  int frame = -1;
+};
+
+TwoViewOutcome monoInertialTwoView() {
+  io::DatasetSourceOptions source_options;
+  source_options.stereo = false;
+  source_options.inertial = true;
+  const auto source =
+      io::openDataset(io::DatasetKind::kEuroc, streetV202Sequence(), source_options);
+  FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
+  mapping::LocalMapperOptions mapping;
+  mapping.triangulate = true;
+  Tracker tracker(TrackerOptions{}, PyramidInfo{}, mapping, source->camera0(), std::nullopt,
+                  source->imu());
+  std::map<TimeNs, SE3d> truth;
+  TwoViewOutcome outcome;
+  for (int frame = 0; const auto bundle = source->next(); ++frame) {
+    if (bundle->T_w_b_gt) truth[bundle->t_ns] = *bundle->T_w_b_gt;
+    if (tracker.track(front_end.build(*bundle)).state != TrackingState::kInitialized) continue;
+    const std::vector<map::KeyFrameId> ids = tracker.map().keyFrameIds();
+    std::vector<std::pair<TimeNs, SE3d>> poses;
+    for (const map::KeyFrameId id : ids) {
+      tracker.map().readKeyFrame(
+          id, [&](const map::KeyFrame& kf) { poses.emplace_back(kf.t_ns, kf.T_w_b); });
+    }
+    const Eigen::Matrix3d estimated =
+        poses.front().second.rotation().transpose() * poses.back().second.rotation();
+    const Eigen::Matrix3d actual = truth.at(poses.front().first).rotation().transpose() *
+                                   truth.at(poses.back().first).rotation();
+    outcome.rotation_error_deg = rotationAngle(estimated.transpose() * actual) * 180.0 / M_PI;
+    outcome.frame = frame;
+    break;
+  }
+  return outcome;
+}
+
+TEST(MonoTracker, MonoInertialTwoViewMapAgreesWithTheTruthOnTheStreet) {
+  // One frame after the reference the homography explained the street's flow with a rotation
+  // 1.7 deg off: the bent map lost track at the inertial initialisation (issue 18, item 10).
+  // The gyroscope now refuses it and a later frame (more parallax) builds the map.
+  const TwoViewOutcome outcome = monoInertialTwoView();
+  std::cout << "street two-view map at frame " << outcome.frame << ": rotation error "
+            << outcome.rotation_error_deg << " deg\n";
+  ASSERT_GE(outcome.frame, 0);
+  EXPECT_LT(outcome.rotation_error_deg, 1.0);
 }
 
 TEST(MonoTracker, KeyFramesKeepTheMinimumIntervalUnlessTrackingIsWeak) {

@@ -45,6 +45,13 @@ struct MonoInitializerOptions {
   double ambiguity_ratio = 0.75;
   /// A reference older than this without initialisation is replaced by the current frame [s].
   double max_reference_age_s = 1.0;
+  /// With an IMU: the two-view rotation may differ from the gyroscope's (integrated at the current
+  /// bias guess) by at most max_gyro_rotation_error_deg + gyro_bias_allowance_deg_s * (time
+  /// between the views) [deg], [deg/s], >= 0. A low-parallax reconstruction that explains the
+  /// flow with a wrong rotation (on a street one frame after the reference: 1.5 deg off, the
+  /// homography chosen) is refused and the next frame tried; the allowance covers the bias.
+  double max_gyro_rotation_error_deg = 0.5;
+  double gyro_bias_allowance_deg_s = 5.0;
   double sigma0_px = 1.0;     ///< Keypoint standard deviation at octave 0 [px], > 0.
   double scale_factor = 1.2;  ///< Pyramid scale between octaves, >= 1 (1: one level).
   /// Match only keypoints of one class_id (the System sets it from features.class_wise_matching).
@@ -100,16 +107,22 @@ class MonoInitializer {
   /// Feeds one frame: it becomes the reference when there is none (or the reference is too old
   /// or has too few matches left); otherwise the two views are reconstructed. Returns the
   /// initialisation when it succeeded (the reference is then cleared).
-  std::optional<MonoInitialization> addFrame(const Frame& frame);
+  /// R_c0_c1_gyro: the rotation from the reference camera to the current one by the gyroscope
+  /// (when there is an IMU and a reference); a reconstruction disagreeing with it is refused.
+  std::optional<MonoInitialization> addFrame(
+      const Frame& frame, const std::optional<Eigen::Matrix3d>& R_c0_c1_gyro = std::nullopt);
 
   void reset() { reference_.reset(); }
   bool hasReference() const { return reference_.has_value(); }
+  /// Time of the reference frame (only with hasReference()).
+  TimeNs referenceTime() const { return reference_->t_ns; }
   /// Why the last attempt failed ("" after success or when there was nothing to try).
   const std::string& lastFailure() const { return last_failure_; }
 
  private:
   std::vector<features::Match> matchToReference(const Frame& frame) const;
   void setReference(const Frame& frame);
+  bool agreesWithGyro(const SE3d& T_c0_c1, const Eigen::Matrix3d& R_c0_c1_gyro, TimeNs t_ns) const;
 
   MonoInitializerOptions options_;
   double focal_px_;

@@ -229,6 +229,9 @@ class Tracker {
   bool inertialReady() const { return !isMonocular() || inertial_inits_ > 0; }
   void initializeMono(const Frame& frame, TrackingResult& result);
   bool buildMonoMap(const MonoInitialization& init, const Frame& frame, TrackingResult& result);
+  /// The gyroscope's rotation from the initialiser's reference camera to this frame's (nullopt
+  /// without IMU, reference or samples spanning both).
+  std::optional<Eigen::Matrix3d> gyroRotationSinceReference(const Frame& frame) const;
   void setMotionFromInitialization(const SE3d& T_w_b0, TimeNs t0_ns, const SE3d& T_w_b1,
                                    TimeNs t1_ns);
   void normalizeMonoScale(map::KeyFrameId first);
