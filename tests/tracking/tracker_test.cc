@@ -189,7 +189,6 @@ MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
   mapping.inertial_init.min_duration_s = 1.0;
   mapping.inertial_init.estimate_scale = true;
   mapping.inertial_init.min_scale_excitation = 0.05;  // the street flight is smooth
-  mapping.fusion.enabled = false;  // as in configs/euroc_mono_inertial.yaml (see there)
   TrackerOptions options;
   options.mono_inertial_wait_for_keyframe_ba = wait_for_keyframe_ba;
   Tracker tracker(options, PyramidInfo{}, mapping, source->camera0(), std::nullopt, source->imu());
