@@ -9,6 +9,7 @@
 #include "commands/command.h"
 #include "commands/demo_command.h"
 #include "commands/eval_command.h"
+#include "commands/eval_dynamic_command.h"
 #include "commands/info_command.h"
 #include "commands/run_command.h"
 #include "commands/simulate_command.h"
@@ -39,6 +40,7 @@ int main(int argc, char** argv) {
 
   std::vector<std::unique_ptr<superdyna::apps::Command>> commands;
   commands.push_back(superdyna::apps::makeEvalCommand(app));
+  commands.push_back(superdyna::apps::makeEvalDynamicCommand(app));
   commands.push_back(superdyna::apps::makeSimulateCommand(app));
   commands.push_back(superdyna::apps::makeInfoCommand(app));
   commands.push_back(superdyna::apps::makeDemoCommand(app));

@@ -14,6 +14,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/system/dynamic_log.h"
 #include "superdyna/system/frame_log.h"
 #include "superdyna/system/system.h"
 
@@ -149,6 +150,15 @@ class RunCommand : public Command {
     sub_->add_option("--frame-log", frame_log_,
                      "Also write a CSV row per frame: index, tracking state, map matches, pose "
                      "inliers, tracked from the reference keyframe (1/0), keyframe (1/0)");
+    sub_->add_option("--dynamic", dynamic_,
+                     "Moving-object handling (overrides dynamic.mode): off (robust kernels "
+                     "only), semantic (drop every movable object) or semantic-geometric (drop "
+                     "the objects the IMU-predicted motion test finds moving); needs labelled "
+                     "keypoints (--instance-masks)")
+        ->check(CLI::IsMember({"off", "semantic", "semantic-geometric"}));
+    sub_->add_option("--dynamic-log", dynamic_log_,
+                     "Also write a CSV row per movable object per frame: "
+                     "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision");
     sub_->add_flag("--instance-masks", instance_masks_,
                    "Label keypoints with the sequence's instance masks (simulated sequences: "
                    "mav0/camN/mask/ and instances.csv)");
@@ -195,6 +205,7 @@ class RunCommand : public Command {
     };
     refuseSame(keyframes_path, "--keyframes");
     if (frame_log_) refuseSame(*frame_log_, "--frame-log");
+    if (dynamic_log_) refuseSame(*dynamic_log_, "--dynamic-log");
     return path;
   }
 
@@ -203,6 +214,7 @@ class RunCommand : public Command {
     const fs::path keyframes_path = keyFramesPath();
     refuseOutputInsideDataset(keyframes_path, "--keyframes");
     if (frame_log_) refuseOutputInsideDataset(*frame_log_, "--frame-log");
+    if (dynamic_log_) refuseOutputInsideDataset(*dynamic_log_, "--dynamic-log");
     const fs::path config_path = configPath(keyframes_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
@@ -214,6 +226,13 @@ class RunCommand : public Command {
         throw OptionError("--model", "ORB has no model; choose --features xfeat or superpoint");
       }
       options.front_end.features.model = *model_;
+    }
+    if (dynamic_) options.tracker.dynamic.mode = dynamic::parseDynamicMode(*dynamic_, "--dynamic");
+    if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff && !instance_masks_) {
+      throw OptionError(dynamic_ ? "--dynamic" : "dynamic.mode",
+                        fmt::format("mode {} needs keypoints labelled by instance masks: add "
+                                    "--instance-masks",
+                                    dynamic::toString(options.tracker.dynamic.mode)));
     }
     options.deterministic = deterministic_;
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
@@ -236,8 +255,11 @@ class RunCommand : public Command {
     ProgressLine progress;
     std::optional<system::FrameLog> frame_log;
     if (frame_log_) frame_log.emplace(*frame_log_, "--frame-log");
+    std::optional<system::DynamicLog> dynamic_log;
+    if (dynamic_log_) dynamic_log.emplace(*dynamic_log_, "--dynamic-log");
     slam.run(*source, [&](const tracking::TrackingResult& result) {
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
+      if (dynamic_log) dynamic_log->write(result);
       progress.update(slam.timings().frames, source->size(), result, slam);
     });
     const system::TimingSummary& t = slam.timings();
@@ -273,6 +295,8 @@ class RunCommand : public Command {
   fs::path output_;
   std::optional<fs::path> keyframes_;
   std::optional<fs::path> frame_log_;
+  std::optional<fs::path> dynamic_log_;
+  std::optional<std::string> dynamic_;
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;
   std::optional<fs::path> config_;

@@ -20,7 +20,8 @@ namespace superdyna::system {
 namespace {
 
 /// The field of SystemOptions one key sets; its type says how the value is read and written.
-using Field = std::variant<double*, int*, bool*, std::string*, features::FeatureType*>;
+using Field =
+    std::variant<double*, int*, bool*, std::string*, features::FeatureType*, dynamic::DynamicMode*>;
 
 struct Key {
   const char* name;
@@ -65,6 +66,17 @@ features::FeatureType readFeatureType(const io::YamlFile& file, const YAML::Node
   }
 }
 
+dynamic::DynamicMode readDynamicMode(const io::YamlFile& file, const YAML::Node& node,
+                                     const std::string& name) {
+  const std::string value = file.scalar(node, name);
+  try {
+    return dynamic::parseDynamicMode(value, name);
+  } catch (const OptionError&) {
+    throw InputError(file.at(node, name),
+                     "expected off, semantic or semantic-geometric, got '" + value + "'");
+  }
+}
+
 /// Sets `field` from the value `node` of the key `name` ("section.key", for messages).
 void read(const io::YamlFile& file, const YAML::Node& node, const std::string& name, Field field) {
   std::visit(
@@ -74,6 +86,7 @@ void read(const io::YamlFile& file, const YAML::Node& node, const std::string& n
           [&](bool* target) { *target = readBool(file, node, name); },
           [&](std::string* target) { *target = file.scalar(node, name); },
           [&](features::FeatureType* target) { *target = readFeatureType(file, node, name); },
+          [&](dynamic::DynamicMode* target) { *target = readDynamicMode(file, node, name); },
       },
       field);
 }
@@ -111,6 +124,7 @@ std::string format(Field field) {
           [](const bool* value) { return std::string(*value ? "true" : "false"); },
           [](const std::string* value) { return quoted(*value); },
           [](const features::FeatureType* value) { return features::toString(*value); },
+          [](const dynamic::DynamicMode* value) { return dynamic::toString(*value); },
       },
       field);
 }
@@ -196,6 +210,28 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"imu_prior_velocity_sigma", &t.imu_prior.velocity_sigma},
         {"imu_prior_position_sigma_m", &t.imu_prior.position_sigma_m},
         {"imu_prior_rotation_sigma_deg", &t.imu_prior.rotation_sigma_deg}}},
+      {"dynamic",
+       {{"mode", &t.dynamic.mode},
+        {"min_pairs", &t.dynamic.min_pairs},
+        {"max_tested_pairs", &t.dynamic.max_tested_pairs},
+        {"threshold_scale", &t.dynamic.threshold_scale},
+        {"min_threshold_px", &t.dynamic.min_threshold_px},
+        {"fallback_threshold_px", &t.dynamic.fallback_threshold_px},
+        {"min_background_pairs", &t.dynamic.min_background_pairs},
+        {"moving_vote_share", &t.dynamic.moving_vote_share},
+        {"min_votes", &t.dynamic.min_votes},
+        {"min_translation_m", &t.dynamic.min_translation_m},
+        {"stereo_reprojection", &t.dynamic.stereo_reprojection},
+        {"static_confirmations", &t.dynamic.static_confirmations},
+        {"moving_confirmations", &t.dynamic.moving_confirmations},
+        {"drop_unverified", &t.dynamic.drop_unverified},
+        {"cull_points_by_instance", &t.dynamic.cull_points_by_instance},
+        {"background_radius_px", &t.dynamic.background_radius_px},
+        {"object_search_radius_px", &t.dynamic.object_search_radius_px},
+        {"match_ratio", &t.dynamic.match_ratio},
+        {"max_hamming", &t.dynamic.max_hamming},
+        {"max_l2_distance", &t.dynamic.max_l2_distance},
+        {"seed", &t.dynamic.seed}}},
       {"mono_init",
        {{"min_features", &t.mono_init.min_features},
         {"min_matches", &t.mono_init.min_matches},

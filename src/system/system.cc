@@ -271,4 +271,16 @@ std::size_t System::numCrossClassMapPoints() const {
   return tracker_.hasMap() ? tracker_.map().numCrossClassMapPoints() : 0;
 }
 
+std::map<int, std::size_t> System::mapPointsPerInstance() const {
+  std::map<int, std::size_t> counts;
+  if (!tracker_.hasMap()) return counts;
+  const map::Map& map = tracker_.map();
+  for (const map::MapPointId id : map.mapPointIds()) {
+    map.readMapPoint(id, [&](const map::MapPoint& point) {
+      if (!point.bad) ++counts[point.instance_id];
+    });
+  }
+  return counts;
+}
+
 }  // namespace superdyna::system

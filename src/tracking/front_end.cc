@@ -38,6 +38,29 @@ int Frame::numStereo() const {
       std::count_if(depth_m.begin(), depth_m.end(), [](double d) { return d > 0.0; }));
 }
 
+Frame Frame::withoutKeypoints(const std::vector<char>& drop, std::vector<int>* kept) const {
+  std::vector<int> indices;
+  for (std::size_t i = 0; i < size(); ++i) {
+    if (!drop[i]) indices.push_back(static_cast<int>(i));
+  }
+  Frame out;
+  out.index = index;
+  out.t_ns = t_ns;
+  out.features = features.select(indices);
+  for (const int i : indices) {
+    out.normalized.push_back(normalized[i]);
+    out.depth_m.push_back(depth_m[i]);
+    out.p_c0.push_back(p_c0[i]);
+    out.right_normalized.push_back(right_normalized[i]);
+  }
+  out.imu = imu;
+  out.extract_ms = extract_ms;
+  out.stereo_ms = stereo_ms;
+  out.cross_class_stereo = cross_class_stereo;
+  if (kept) kept->insert(kept->end(), indices.begin(), indices.end());
+  return out;
+}
+
 void FrontEndOptions::validate() const {
   features.validate();
   stereo.validate();

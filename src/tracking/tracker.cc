@@ -42,6 +42,7 @@ double millisecondsSince(Clock::time_point start) {
 void TrackerOptions::validate() const {
   projection.validate();
   pose.validate();
+  dynamic.validate();
   if (!(wide_radius_px > 0.0)) throw OptionError("tracker.wide_radius_px", "must be > 0");
   if (min_projection_matches < 0) {
     throw OptionError("tracker.min_projection_matches", "must be >= 0");
@@ -119,7 +120,8 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
       cameras_(rigCameras(cam0, cam1)),
       imu_(options.use_imu ? imu : std::nullopt),
       baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
-      mapper_(mapping, cameras_, imu_) {
+      mapper_(mapping, cameras_, imu_),
+      moving_detector_(options.dynamic, camera0_) {
   options_.validate();
   map_ = newMap();
   if (isMonocular()) {
@@ -202,22 +204,30 @@ SE3d Tracker::gravityAlignedPose(const Frame& frame) const {
               Eigen::Vector3d::Zero());
 }
 
-TrackingResult Tracker::track(const Frame& frame) {
+TrackingResult Tracker::track(const Frame& input) {
   TrackingResult result;
-  result.times.extract_ms = frame.extract_ms;
-  result.times.stereo_ms = frame.stereo_ms;
+  result.t_ns = input.t_ns;
+  result.times.extract_ms = input.extract_ms;
+  result.times.stereo_ms = input.stereo_ms;
   const auto start = Clock::now();
-  if (imu_) imu_since_keyframe_.append(frame.imu);
+  if (imu_) imu_since_keyframe_.append(input.imu);
   // The map-reading part of the frame holds the map's read lock (map.h): it sees each update of
   // the mapping thread entirely or not at all. Without a map it reads none, and starting a map
   // waits for the mapping thread, which must not find the lock held.
   map::Map::ReadLock reading;
   if (has_map_) reading = map_->readLock();
-  const Prediction prediction = predictPose(frame);
+  const Prediction prediction = predictPose(input);
   result.T_w_b = prediction.T_w_b;
+  std::vector<int> kept;
+  std::optional<Frame> without_moving;
+  if (options_.dynamic.mode != dynamic::DynamicMode::kOff) {
+    without_moving = removeMovingFeatures(input, prediction, result, kept);
+  }
+  const Frame& frame = without_moving ? *without_moving : input;
   if (!has_map_ && isMonocular()) {
     initializeMono(frame, result);
     result.times.track_ms = millisecondsSince(start);
+    rememberFrame(input, kept, {});
     if (result.state == TrackingState::kInitialized) return result;  // motion set by the init
     updateMotion(result.T_w_b, frame.t_ns);
     return result;
@@ -225,6 +235,7 @@ TrackingResult Tracker::track(const Frame& frame) {
   if (!has_map_) {
     initializeAt(frame, initialPose(frame, prediction.T_w_b), result);
     result.times.track_ms = millisecondsSince(start);
+    rememberFrame(input, kept, {});
     updateMotion(result.T_w_b, frame.t_ns);
     return result;
   }
@@ -246,6 +257,7 @@ TrackingResult Tracker::track(const Frame& frame) {
   if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
     addKeyFrameAndMap(frame, tracked, prediction, result);
   }
+  rememberFrame(input, kept, has_map_ ? tracked : std::vector<map::MapPointId>{});
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
 }
@@ -529,7 +541,7 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   has_map_ = true;
 }
 
-std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
+std::set<map::MapPointId> Tracker::localPointIds() const {
   std::vector<map::KeyFrameId> keyframes =
       map_->bestCovisibleKeyFrames(reference_, options_.local_keyframes);
   keyframes.push_back(reference_);
@@ -540,6 +552,11 @@ std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
         if (p != map::kNoMapPoint) ids.insert(p);
     });
   }
+  return ids;
+}
+
+std::vector<Tracker::LocalPoint> Tracker::localPoints() const {
+  const std::set<map::MapPointId> ids = localPointIds();
   std::vector<LocalPoint> points;
   points.reserve(ids.size());
   for (const map::MapPointId id : ids) {

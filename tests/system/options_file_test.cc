@@ -97,6 +97,28 @@ tracker:
   imu_prior_velocity_sigma: 0.1
   imu_prior_position_sigma_m: 0.01
   imu_prior_rotation_sigma_deg: 0.3
+dynamic:
+  mode: semantic-geometric
+  min_pairs: 4
+  max_tested_pairs: 12
+  threshold_scale: 3.5
+  min_threshold_px: 1.25
+  fallback_threshold_px: 2.5
+  min_background_pairs: 30
+  moving_vote_share: 0.45
+  min_votes: 3
+  min_translation_m: 0.02
+  stereo_reprojection: false
+  static_confirmations: 3
+  moving_confirmations: 3
+  drop_unverified: false
+  cull_points_by_instance: false
+  background_radius_px: 25
+  object_search_radius_px: 100
+  match_ratio: 0.75
+  max_hamming: 60
+  max_l2_distance: 0.9
+  seed: 7
 mono_init:
   min_features: 120
   min_matches: 90
@@ -178,7 +200,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 120u);  // every key of the nine sections
+  EXPECT_EQ(written.size(), 141u);  // every key of the ten sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

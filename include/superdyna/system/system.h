@@ -19,6 +19,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -60,8 +61,8 @@ struct SystemOptions {
 void applyClassWiseMatching(SystemOptions& options);
 
 /// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
-/// `tracker`, `mono_init`, `mapping`, `pipeline`) over `defaults`; an unknown section or key is an
-/// InputError naming file and key.
+/// `tracker`, `dynamic`, `mono_init`, `mapping`, `pipeline`) over `defaults`; an unknown section or
+/// key is an InputError naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// The options as an options file that loadSystemOptions reads back to the same values: every key
@@ -148,6 +149,8 @@ class System {
   std::size_t numMapPoints() const;
   /// Points of the current map observed by keypoints of different classes (map::Map).
   std::size_t numCrossClassMapPoints() const;
+  /// Points of the current map by the instance id of the object they lie on (0 = background).
+  std::map<int, std::size_t> mapPointsPerInstance() const;
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return tracker_.inertialInitialized(); }
 

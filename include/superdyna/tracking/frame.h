@@ -32,6 +32,9 @@ struct Frame {
   std::size_t size() const { return features.size(); }
   bool hasStereo(std::size_t i) const { return depth_m[i] > 0.0; }
   int numStereo() const;
+  /// The frame with only the keypoints whose `drop` entry is 0 (in order), and every per-keypoint
+  /// field with them; the indices kept are appended to `kept` when given.
+  Frame withoutKeypoints(const std::vector<char>& drop, std::vector<int>* kept = nullptr) const;
 };
 
 }  // namespace superdyna::tracking

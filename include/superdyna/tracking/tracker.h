@@ -33,11 +33,13 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
 #include <unordered_map>
 #include <vector>
 
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
+#include "superdyna/dynamic/moving_object_detector.h"
 #include "superdyna/features/matcher.h"
 #include "superdyna/imu/preintegration.h"
 #include "superdyna/io/dataset_source.h"
@@ -115,6 +117,13 @@ struct TrackerOptions {
   /// Pose from the reference keyframe without a prediction (reference_matching.h): for frames whose
   /// motion is unknown and as a retry before a frame is declared lost.
   ReferenceMatchingOptions reference_matching;
+  /// The moving-object test between the pose prediction and the local-map search
+  /// (dynamic/moving_object_detector.h): the relative pose of the previous and the current frame
+  /// is the tracker's prediction (after the inertial initialisation IMU preintegration from the
+  /// newest keyframe, before it the gyroscope's rotation with the constant-velocity translation,
+  /// without IMU the constant-velocity model). Dropped keypoints take no part in the pose, create
+  /// no map points, and the map points of their partners in the previous frame are culled.
+  dynamic::MovingObjectOptions dynamic;
   void validate() const;
   bool operator==(const TrackerOptions&) const = default;
 };
@@ -130,10 +139,12 @@ struct StageTimes {
   double stereo_ms = 0.0;
   double track_ms = 0.0;
   double local_ba_ms = 0.0;
+  double moving_objects_ms = 0.0;  ///< The moving-object test (part of track_ms).
 };
 
 struct TrackingResult {
-  SE3d T_w_b;  ///< Estimated (or, when lost, predicted) body pose.
+  TimeNs t_ns = 0;  ///< The frame's time.
+  SE3d T_w_b;       ///< Estimated (or, when lost, predicted) body pose.
   TrackingState state = TrackingState::kLost;
   int matches = 0;
   int cross_class_matches = 0;  ///< Map-to-frame matches between different class_id.
@@ -146,6 +157,9 @@ struct TrackingResult {
   /// gravity alignment; mono-inertial: scale too): poses reported earlier on this map map into the
   /// new frame by mapping::transformBodyPose.
   std::optional<Sim3d> world_change;
+  /// The moving-object test's decisions (objects empty with dynamic.mode off); drop is cleared.
+  dynamic::MovingObjectReport moving;
+  int culled_moving_points = 0;  ///< Map points culled because their object moves.
   StageTimes times;
 };
 
@@ -216,6 +230,14 @@ class Tracker {
     /// projection.radius_px, without the wide retry.
     std::optional<double> search_radius_px;
   };
+  /// The frame without the keypoints the moving-object test drops (result.moving, and the map
+  /// points of moving objects culled); `kept` receives the indices of the kept keypoints.
+  Frame removeMovingFeatures(const Frame& frame, const Prediction& prediction,
+                             TrackingResult& result, std::vector<int>& kept);
+  /// Keeps `frame` (all its keypoints) and the map points tracked by its kept keypoints for the
+  /// next frame's moving-object test.
+  void rememberFrame(const Frame& frame, const std::vector<int>& kept,
+                     const std::vector<map::MapPointId>& tracked);
   std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
   /// With IMU: runs the local mapper's inertial (re-)initialisation of the map when it is due.
   void initializeInertialIfDue(TrackingResult& result);
@@ -258,7 +280,12 @@ class Tracker {
                               TrackingResult& result);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
                          const Prediction& prediction, TrackingResult& result);
+  /// The points of the reference keyframe and its best covisible keyframes.
+  std::set<map::MapPointId> localPointIds() const;
   std::vector<LocalPoint> localPoints() const;
+  /// Culls the local map's points on the instances the moving-object test found moving
+  /// (dynamic.cull_points_by_instance); returns how many.
+  int cullPointsOnMovingInstances(const dynamic::MovingObjectReport& report);
   /// Matches the points projected from T_w_b within options.radius_px (retried at
   /// wide_radius_px when too few, if `allow_wide`); the ids of the points that project into the
   /// image are appended to `visible_ids` when given.
@@ -326,6 +353,9 @@ class Tracker {
   int resets_ = 0;
 
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
+  dynamic::MovingObjectDetector moving_detector_;
+  std::optional<Frame> previous_frame_;  ///< The last frame, all keypoints (dynamic.mode on).
+  std::vector<map::MapPointId> previous_tracked_;  ///< Its keypoints' map points, same indexing.
   int inertial_inits_ = 0;  ///< Inertial (re-)initialisations of the current map.
 };
 

@@ -1,0 +1,171 @@
+#pragma once
+// The moving-object test (the paper's D module, stage 2): of the movable objects the instance
+// masks label (stage 1: keypoints with class_id != background), which ones move between the
+// previous and the current frame, and so which keypoints tracking must not use.
+//
+// Per frame, given the predicted relative camera pose T_cur_prev (IMU preintegration or the motion
+// model; the tracker's prediction):
+// 1. Pairs. Background keypoints of the previous frame are matched into the current frame around
+//    where a static point lands (its stereo point moved by the prediction, or without depth its
+//    bearing rotated, in a doubled radius); keypoints of movable objects within a wide radius
+//    around that place (object_search_radius_px: a mover's own image motion), class-wise.
+// 2. Threshold. Every background pair's residual (motion_residual.h) under each test; the
+//    threshold of a test is max(min_threshold_px, threshold_scale * median background residual).
+//    The paper takes the mean background distance; the median ignores the background's own
+//    mismatches and unlabelled movers. Too few background pairs: fallback_threshold_px.
+// 3. Objects. The pairs of each current instance are grouped; objects with fewer than min_pairs
+//    are unverified this frame. Otherwise up to max_tested_pairs pairs are drawn (seeded, so that
+//    deterministic runs stay bit-identical) and tested: reprojection where the previous keypoint
+//    has stereo depth (stereo_reprojection), else epipolar, or rotation transfer when the
+//    predicted translation is below min_translation_m. The object moves in this frame when at
+//    least max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
+//    threshold of their test (the paper: any one pair).
+// 4. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
+//    object inherits the track of the previous instance most of its pairs come from (greedily,
+//    strongest links first, each previous track to one object; a new track when none). A new
+//    track takes its first frame's verdict; a static track turns moving after
+//    moving_confirmations moving frames in a row, a moving one static after static_confirmations
+//    static frames in a row; unverified frames keep the state. Keypoints of moving tracks are
+//    dropped, those of never-verified ones too when drop_unverified.
+//
+// mode kSemantic drops every movable keypoint (DynaSLAM-style) without testing; kOff drops none.
+
+#include <cstdint>
+#include <map>
+#include <vector>
+
+#include "superdyna/core/camera_model.h"
+#include "superdyna/core/geometry.h"
+#include "superdyna/core/time.h"
+#include "superdyna/dynamic/motion_residual.h"
+#include "superdyna/features/feature_set.h"
+
+namespace superdyna::dynamic {
+
+enum class DynamicMode { kOff, kSemantic, kSemanticGeometric };
+/// "off" | "semantic" | "semantic-geometric"; OptionError naming `option` otherwise.
+DynamicMode parseDynamicMode(const std::string& name, const std::string& option);
+std::string toString(DynamicMode mode);
+
+struct MovingObjectOptions {
+  DynamicMode mode = DynamicMode::kOff;
+  int min_pairs = 1;                   ///< Fewer pairs: unverified this frame, >= 1.
+  int max_tested_pairs = 10;           ///< Pairs drawn per object, >= 1.
+  double threshold_scale = 3.0;        ///< Times the median background residual, > 0.
+  double min_threshold_px = 1.0;       ///< Lower bound of a threshold [px], > 0.
+  double fallback_threshold_px = 3.0;  ///< Threshold without enough background pairs [px], > 0.
+  int min_background_pairs = 20;       ///< Background pairs a test's threshold needs, >= 1.
+  double moving_vote_share = 0.4;      ///< Share of tested pairs beyond the threshold, (0, 1].
+  int min_votes = 2;                   ///< ... and at least this many (capped by tested), >= 1.
+  double min_translation_m = 0.01;     ///< Below: rotation transfer instead of epipolar, >= 0.
+  bool stereo_reprojection = true;     ///< Test pairs with previous stereo depth by reprojection.
+  int static_confirmations = 2;        ///< Static frames in a row that clear a moving track, >= 1.
+  int moving_confirmations = 2;        ///< Moving frames in a row that set a static track, >= 1.
+  bool drop_unverified = true;         ///< Drop objects never verified (new, too few pairs).
+  /// The tracker also culls the local map's points whose instance id is that of a moving object:
+  /// right when instance ids are stable over the sequence (dataset masks); turn it off for
+  /// segmenters that renumber instances every frame (then only the points of the moving object's
+  /// pairs in the previous frame are culled).
+  bool cull_points_by_instance = true;
+  double background_radius_px = 20.0;      ///< Search radius of background pairs [px], > 0.
+  double object_search_radius_px = 120.0;  ///< Search radius of object pairs [px], > 0.
+  double match_ratio = 0.8;                ///< Ratio test of both searches, (0, 1].
+  int max_hamming = 64;                    ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;            ///< Largest accepted float distance, >= 0.
+  int seed = 1;  ///< Seeds the draw of tested pairs (mixed with the frame time), >= 0.
+  void validate() const;
+  bool operator==(const MovingObjectOptions&) const = default;
+};
+
+/// One frame as the test reads it (views into the caller's data, which must outlive the call).
+struct FrameObservations {
+  TimeNs t_ns = 0;
+  const features::FeatureSet* features = nullptr;
+  /// Undistorted normalised coordinates per keypoint; NaN when undistortion failed.
+  const std::vector<Eigen::Vector2d>* normalized = nullptr;
+  /// Stereo point in the camera per keypoint [m]; valid where depth_m[i] > 0. May be null (mono).
+  const std::vector<Eigen::Vector3d>* p_c = nullptr;
+  const std::vector<double>* depth_m = nullptr;
+  bool hasDepth(std::size_t i) const { return depth_m && (*depth_m)[i] > 0.0; }
+};
+
+enum class ObjectState { kUnverified, kStatic, kMoving };
+const char* toString(ObjectState state);
+
+/// The verdict on one movable instance of the current frame.
+struct ObjectDecision {
+  int instance_id = 0;
+  int class_id = 0;
+  int track_id = -1;  ///< Identity across frames (see the file comment); -1 in kSemantic.
+  int keypoints = 0;  ///< Its keypoints in the current frame.
+  int pairs = 0;      ///< Its keypoints matched to the previous frame.
+  int tested = 0;     ///< Pairs drawn and tested this frame (0: unverified or kSemantic).
+  int votes = 0;      ///< Tested pairs beyond their threshold.
+  double max_distance_px = 0.0;  ///< Largest tested residual.
+  double threshold_px = 0.0;     ///< Threshold of the test of that pair.
+  /// The state applied (after hysteresis); kMoving for every object in kSemantic.
+  ObjectState decision = ObjectState::kUnverified;
+  bool dropped = false;  ///< Its keypoints are dropped.
+};
+
+struct MovingObjectReport {
+  std::vector<ObjectDecision> objects;  ///< One per movable instance, by instance id.
+  std::vector<char> drop;               ///< Per current keypoint: 1 = not to be used.
+  /// Previous-frame keypoints paired with keypoints of moving objects (their map points are to
+  /// be culled).
+  std::vector<int> moving_previous_keypoints;
+  int background_pairs = 0;
+  int dropped = 0;  ///< Keypoints with drop set.
+};
+
+class MovingObjectDetector {
+ public:
+  /// `camera` is the camera both frames come from (projection of predicted points).
+  MovingObjectDetector(const MovingObjectOptions& options, const CameraModel& camera);
+
+  /// The decisions for `current`; `previous` may be null (first frame of a map: nothing is tested).
+  /// T_cur_prev maps previous-camera points into the current camera.
+  MovingObjectReport detect(const FrameObservations* previous, const FrameObservations& current,
+                            const SE3d& T_cur_prev);
+  /// Forgets every track (a new map).
+  void reset();
+  const MovingObjectOptions& options() const { return options_; }
+
+ private:
+  struct Track {
+    ObjectState state = ObjectState::kUnverified;
+    int static_run = 0;  ///< Static frames in a row.
+    int moving_run = 0;  ///< Moving frames in a row.
+  };
+  struct Pair {
+    int previous = 0;
+    int current = 0;
+  };
+  struct Thresholds;
+
+  std::vector<Pair> matchPairs(const FrameObservations& previous, const FrameObservations& current,
+                               const SE3d& T_cur_prev, bool movable) const;
+  Thresholds backgroundThresholds(const std::vector<Pair>& pairs, const FrameObservations& previous,
+                                  const FrameObservations& current, const SE3d& T_cur_prev) const;
+  void testObject(const std::vector<Pair>& pairs, const FrameObservations& previous,
+                  const FrameObservations& current, const SE3d& T_cur_prev,
+                  const Thresholds& thresholds, std::uint64_t draw_seed,
+                  ObjectDecision& decision) const;
+  /// The track of every current instance (`instances`) from its pairs' previous instances.
+  std::map<int, int> associateTracks(const std::map<int, std::vector<Pair>>& pairs_of,
+                                     const std::vector<int>& instances,
+                                     const FrameObservations* previous);
+  void applyHysteresis(ObjectDecision& decision, bool tested_moving);
+  /// Keeps only the tracks of the current frame's objects (an object is followed from one frame
+  /// to the next only).
+  void forgetUnseenTracks(const std::map<int, int>& track_of_instance);
+
+  MovingObjectOptions options_;
+  CameraModel camera_;
+  double focal_px_ = 1.0;
+  std::map<int, Track> tracks_;
+  std::map<int, int> track_of_previous_instance_;
+  int next_track_ = 0;
+};
+
+}  // namespace superdyna::dynamic

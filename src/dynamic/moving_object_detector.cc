@@ -1,0 +1,382 @@
+#include "superdyna/dynamic/moving_object_detector.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+#include <tuple>
+
+#include "superdyna/core/error.h"
+#include "superdyna/features/matcher.h"
+
+namespace superdyna::dynamic {
+
+namespace {
+
+constexpr int kNumTests = 3;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+int index(ResidualTest test) {
+  return static_cast<int>(test);
+}
+
+bool isMovable(const features::Keypoint& keypoint) {
+  return keypoint.class_id != features::kClassBackground;
+}
+
+bool finite(const Eigen::Vector2d& x) {
+  return std::isfinite(x.x()) && std::isfinite(x.y());
+}
+
+double median(std::vector<double> values) {
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+/// SplitMix64: a seed per frame from the option seed and the frame time, so that the draw does
+/// not depend on how many frames came before (and is the same on every platform).
+std::uint64_t mixSeed(std::uint64_t seed, TimeNs t_ns) {
+  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (static_cast<std::uint64_t>(t_ns) + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+/// The first `count` elements of a seeded partial Fisher-Yates shuffle of `items` (modulo draw:
+/// the bias is negligible for the few dozen pairs of an object, and the result is portable).
+template <class T>
+std::vector<T> drawSubset(std::vector<T> items, std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  count = std::min(count, items.size());
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::size_t j = i + static_cast<std::size_t>(rng() % (items.size() - i));
+    std::swap(items[i], items[j]);
+  }
+  items.resize(count);
+  return items;
+}
+
+}  // namespace
+
+DynamicMode parseDynamicMode(const std::string& name, const std::string& option) {
+  if (name == "off") return DynamicMode::kOff;
+  if (name == "semantic") return DynamicMode::kSemantic;
+  if (name == "semantic-geometric") return DynamicMode::kSemanticGeometric;
+  throw OptionError(option,
+                    fmt::format("unknown mode '{}' (off|semantic|semantic-geometric)", name));
+}
+
+std::string toString(DynamicMode mode) {
+  switch (mode) {
+    case DynamicMode::kOff:
+      return "off";
+    case DynamicMode::kSemantic:
+      return "semantic";
+    case DynamicMode::kSemanticGeometric:
+      return "semantic-geometric";
+  }
+  return "?";
+}
+
+const char* toString(ObjectState state) {
+  switch (state) {
+    case ObjectState::kUnverified:
+      return "unverified";
+    case ObjectState::kStatic:
+      return "static";
+    case ObjectState::kMoving:
+      return "moving";
+  }
+  return "?";
+}
+
+void MovingObjectOptions::validate() const {
+  const auto require = [](bool ok, const char* option, const char* what) {
+    if (!ok) throw OptionError(std::string("dynamic.") + option, what);
+  };
+  require(min_pairs >= 1, "min_pairs", "must be >= 1");
+  require(max_tested_pairs >= 1, "max_tested_pairs", "must be >= 1");
+  require(threshold_scale > 0.0, "threshold_scale", "must be > 0");
+  require(min_threshold_px > 0.0, "min_threshold_px", "must be > 0");
+  require(fallback_threshold_px > 0.0, "fallback_threshold_px", "must be > 0");
+  require(min_background_pairs >= 1, "min_background_pairs", "must be >= 1");
+  require(moving_vote_share > 0.0 && moving_vote_share <= 1.0, "moving_vote_share",
+          "must be in (0, 1]");
+  require(min_votes >= 1, "min_votes", "must be >= 1");
+  require(min_translation_m >= 0.0, "min_translation_m", "must be >= 0");
+  require(static_confirmations >= 1, "static_confirmations", "must be >= 1");
+  require(moving_confirmations >= 1, "moving_confirmations", "must be >= 1");
+  require(background_radius_px > 0.0, "background_radius_px", "must be > 0");
+  require(object_search_radius_px > 0.0, "object_search_radius_px", "must be > 0");
+  require(match_ratio > 0.0 && match_ratio <= 1.0, "match_ratio", "must be in (0, 1]");
+  require(max_hamming >= 0, "max_hamming", "must be >= 0");
+  require(max_l2_distance >= 0.0, "max_l2_distance", "must be >= 0");
+  require(seed >= 0, "seed", "must be >= 0");
+}
+
+struct MovingObjectDetector::Thresholds {
+  std::array<double, kNumTests> px{};
+  std::array<int, kNumTests> samples{};
+};
+
+MovingObjectDetector::MovingObjectDetector(const MovingObjectOptions& options,
+                                           const CameraModel& camera)
+    : options_(options), camera_(camera), focal_px_(0.5 * (camera.fx() + camera.fy())) {
+  options_.validate();
+}
+
+void MovingObjectDetector::reset() {
+  tracks_.clear();
+  track_of_previous_instance_.clear();
+}
+
+std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
+    const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
+    bool movable) const {
+  const features::FeatureSet& query = *previous.features;
+  std::vector<Eigen::Vector2d> predicted(query.size(), Eigen::Vector2d::Constant(kNaN));
+  for (std::size_t i = 0; i < query.size(); ++i) {
+    const Eigen::Vector2d& x = (*previous.normalized)[i];
+    if (isMovable(query.keypoints[i]) != movable || !finite(x)) continue;
+    const Eigen::Vector3d p_cur = previous.hasDepth(i)
+                                      ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
+                                      : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
+    if (const auto pixel = camera_.project(p_cur)) predicted[i] = *pixel;
+  }
+  features::ProjectionMatchOptions search;
+  search.radius_px = movable           ? options_.object_search_radius_px
+                     : current.depth_m ? options_.background_radius_px
+                                       : 2.0 * options_.background_radius_px;
+  search.ratio = options_.match_ratio;
+  search.max_distance = options_.max_hamming;
+  search.max_l2_distance = options_.max_l2_distance;
+  search.same_class_only = true;
+  const features::KeypointGrid grid(current.features->keypoints, current.features->image_size);
+  std::vector<Pair> pairs;
+  for (const features::Match& match :
+       features::matchByProjection(query, predicted, *current.features, grid, search)) {
+    if (finite((*current.normalized)[match.train])) pairs.push_back({match.query, match.train});
+  }
+  return pairs;
+}
+
+MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
+    const std::vector<Pair>& pairs, const FrameObservations& previous,
+    const FrameObservations& current, const SE3d& T_cur_prev) const {
+  std::array<std::vector<double>, kNumTests> residuals;
+  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
+  for (const Pair& pair : pairs) {
+    const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
+    const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
+    const auto push = [&](ResidualTest test, std::optional<double> residual) {
+      if (residual) residuals[index(test)].push_back(*residual);
+    };
+    if (translating) {
+      push(ResidualTest::kEpipolar, epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_));
+    } else {
+      push(ResidualTest::kRotationTransfer,
+           rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_));
+    }
+    if (previous.hasDepth(pair.previous)) {
+      push(ResidualTest::kReprojection,
+           reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_));
+    }
+  }
+  Thresholds thresholds;
+  for (int test = 0; test < kNumTests; ++test) {
+    const std::vector<double>& values = residuals[test];
+    thresholds.samples[test] = static_cast<int>(values.size());
+    thresholds.px[test] =
+        static_cast<int>(values.size()) < options_.min_background_pairs
+            ? options_.fallback_threshold_px
+            : std::max(options_.min_threshold_px, options_.threshold_scale * median(values));
+  }
+  return thresholds;
+}
+
+void MovingObjectDetector::testObject(const std::vector<Pair>& pairs,
+                                      const FrameObservations& previous,
+                                      const FrameObservations& current, const SE3d& T_cur_prev,
+                                      const Thresholds& thresholds, std::uint64_t draw_seed,
+                                      ObjectDecision& decision) const {
+  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
+  const std::vector<Pair> drawn =
+      drawSubset(pairs, static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
+  double worst_excess = -std::numeric_limits<double>::infinity();
+  for (const Pair& pair : drawn) {
+    const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
+    const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
+    ResidualTest test = translating ? ResidualTest::kEpipolar : ResidualTest::kRotationTransfer;
+    std::optional<double> residual;
+    if (options_.stereo_reprojection && previous.hasDepth(pair.previous)) {
+      test = ResidualTest::kReprojection;
+      residual =
+          reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_);
+    } else if (translating) {
+      residual = epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+    } else {
+      residual = rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+    }
+    if (!residual) continue;
+    const double threshold = thresholds.px[index(test)];
+    ++decision.tested;
+    if (*residual > threshold) ++decision.votes;
+    if (*residual - threshold > worst_excess) {
+      worst_excess = *residual - threshold;
+      decision.max_distance_px = *residual;
+      decision.threshold_px = threshold;
+    }
+  }
+}
+
+std::map<int, int> MovingObjectDetector::associateTracks(
+    const std::map<int, std::vector<Pair>>& pairs_of, const std::vector<int>& instances,
+    const FrameObservations* previous) {
+  // Candidate links (pairs, current instance, previous instance), strongest first; each previous
+  // instance hands its track to one current instance only, so that a few wrong matches cannot
+  // give two objects one track (and one object's motion to another).
+  std::vector<std::tuple<int, int, int>> links;
+  if (previous) {
+    for (const auto& [instance, pairs] : pairs_of) {
+      std::map<int, int> votes;  // previous instance id -> pairs
+      for (const Pair& pair : pairs)
+        ++votes[previous->features->keypoints[pair.previous].instance_id];
+      for (const auto& [previous_instance, count] : votes) {
+        links.emplace_back(count, instance, previous_instance);
+      }
+    }
+  }
+  std::sort(links.begin(), links.end(), [](const auto& a, const auto& b) {
+    if (std::get<0>(a) != std::get<0>(b)) return std::get<0>(a) > std::get<0>(b);
+    return std::make_pair(std::get<1>(a), std::get<2>(a)) <
+           std::make_pair(std::get<1>(b), std::get<2>(b));
+  });
+  std::map<int, int> track_of_instance;
+  std::set<int> handed_on;
+  for (const auto& [count, instance, previous_instance] : links) {
+    const auto found = track_of_previous_instance_.find(previous_instance);
+    if (found == track_of_previous_instance_.end() || track_of_instance.count(instance) ||
+        handed_on.count(previous_instance)) {
+      continue;
+    }
+    track_of_instance[instance] = found->second;
+    handed_on.insert(previous_instance);
+  }
+  for (const int instance : instances) {
+    if (!track_of_instance.count(instance)) track_of_instance[instance] = next_track_++;
+  }
+  return track_of_instance;
+}
+
+void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested_moving) {
+  Track& track = tracks_[decision.track_id];
+  if (decision.tested > 0) {
+    track.moving_run = tested_moving ? track.moving_run + 1 : 0;
+    track.static_run = tested_moving ? 0 : track.static_run + 1;
+    if (track.state != ObjectState::kStatic && tested_moving) {
+      track.state = ObjectState::kMoving;
+    } else if (track.state == ObjectState::kStatic &&
+               track.moving_run >= options_.moving_confirmations) {
+      track.state = ObjectState::kMoving;
+    } else if (track.state != ObjectState::kMoving && !tested_moving) {
+      track.state = ObjectState::kStatic;
+    } else if (track.state == ObjectState::kMoving &&
+               track.static_run >= options_.static_confirmations) {
+      track.state = ObjectState::kStatic;
+    }
+  }
+  decision.decision = track.state;
+  decision.dropped = track.state == ObjectState::kMoving ||
+                     (track.state == ObjectState::kUnverified && options_.drop_unverified);
+}
+
+void MovingObjectDetector::forgetUnseenTracks(const std::map<int, int>& track_of_instance) {
+  std::map<int, Track> seen;
+  for (const auto& [instance, track] : track_of_instance) {
+    if (const auto found = tracks_.find(track); found != tracks_.end()) seen.insert(*found);
+  }
+  tracks_ = std::move(seen);
+}
+
+MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previous,
+                                                const FrameObservations& current,
+                                                const SE3d& T_cur_prev) {
+  MovingObjectReport report;
+  const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
+  report.drop.assign(keypoints.size(), 0);
+  if (options_.mode == DynamicMode::kOff) return report;
+
+  std::map<int, ObjectDecision> objects;  // by current instance id
+  for (const features::Keypoint& keypoint : keypoints) {
+    if (!isMovable(keypoint)) continue;
+    ObjectDecision& object = objects[keypoint.instance_id];
+    object.instance_id = keypoint.instance_id;
+    object.class_id = keypoint.class_id;
+    ++object.keypoints;
+  }
+
+  std::map<int, std::vector<Pair>> pairs_of;  // by current instance id
+  if (options_.mode == DynamicMode::kSemanticGeometric && previous) {
+    for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true)) {
+      pairs_of[keypoints[pair.current].instance_id].push_back(pair);
+    }
+    const std::vector<Pair> background = matchPairs(*previous, current, T_cur_prev, false);
+    report.background_pairs = static_cast<int>(background.size());
+    const Thresholds thresholds = backgroundThresholds(background, *previous, current, T_cur_prev);
+    const std::uint64_t frame_seed =
+        mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
+    for (auto& [instance, object] : objects) {
+      const std::vector<Pair>& pairs = pairs_of[instance];
+      object.pairs = static_cast<int>(pairs.size());
+      if (object.pairs >= options_.min_pairs) {
+        testObject(pairs, *previous, current, T_cur_prev, thresholds,
+                   frame_seed ^ static_cast<std::uint64_t>(instance), object);
+      }
+    }
+  }
+
+  std::vector<int> instances;
+  for (const auto& [instance, object] : objects)
+    instances.push_back(instance);
+  std::map<int, int> track_of_instance;
+  if (options_.mode == DynamicMode::kSemanticGeometric) {
+    track_of_instance = associateTracks(pairs_of, instances, previous);
+  }
+  for (auto& [instance, object] : objects) {
+    if (options_.mode == DynamicMode::kSemantic) {
+      object.decision = ObjectState::kMoving;
+      object.dropped = true;
+    } else {
+      object.track_id = track_of_instance.at(instance);
+      const int needed =
+          std::max(std::min(options_.min_votes, object.tested),
+                   static_cast<int>(std::ceil(options_.moving_vote_share * object.tested)));
+      applyHysteresis(object, object.tested > 0 && object.votes >= needed);
+    }
+    if (object.decision == ObjectState::kMoving) {
+      for (const Pair& pair : pairs_of[instance]) {
+        report.moving_previous_keypoints.push_back(pair.previous);
+      }
+    }
+    report.objects.push_back(object);
+  }
+  forgetUnseenTracks(track_of_instance);
+  track_of_previous_instance_ = std::move(track_of_instance);
+
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    if (!isMovable(keypoints[i])) continue;
+    if (objects[keypoints[i].instance_id].dropped) {
+      report.drop[i] = 1;
+      ++report.dropped;
+    }
+  }
+  std::sort(report.moving_previous_keypoints.begin(), report.moving_previous_keypoints.end());
+  return report;
+}
+
+}  // namespace superdyna::dynamic

@@ -1,0 +1,303 @@
+#include "superdyna/dynamic/moving_object_detector.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::dynamic {
+namespace {
+
+constexpr double kFocal = 400.0;
+constexpr int kWidth = 640, kHeight = 480;
+
+CameraModel camera() {
+  return CameraModel(kWidth, kHeight, kFocal, kFocal, 320.0, 240.0);
+}
+
+/// A 3D point of the synthetic scene with its own descriptor.
+struct ScenePoint {
+  Eigen::Vector3d p_w;
+  int instance = 0;
+  int class_id = features::kClassBackground;
+  std::array<std::uint8_t, 32> descriptor{};
+};
+
+/// What one frame's feature stage would give: keypoints labelled by instance, undistorted
+/// normalised coordinates and stereo points, with 0.3 px image noise and 1 % depth noise.
+struct SyntheticFrame {
+  TimeNs t_ns = 0;
+  features::FeatureSet features;
+  std::vector<Eigen::Vector2d> normalized;
+  std::vector<Eigen::Vector3d> p_c;
+  std::vector<double> depth_m;
+  bool stereo = true;
+
+  FrameObservations view() const {
+    FrameObservations view;
+    view.t_ns = t_ns;
+    view.features = &features;
+    view.normalized = &normalized;
+    if (stereo) {
+      view.p_c = &p_c;
+      view.depth_m = &depth_m;
+    }
+    return view;
+  }
+  int count(int instance) const {
+    int n = 0;
+    for (const auto& k : features.keypoints)
+      n += k.instance_id == instance;
+    return n;
+  }
+};
+
+class Scene {
+ public:
+  explicit Scene(std::uint64_t seed) : rng_(seed) {
+    addBox(0, features::kClassBackground, {-10, -3, 6}, {10, 2, 30}, 400);
+    addBox(1, features::kClassVehicle, {-3.0, 0.0, 8.0}, {-1.5, 1.2, 10.0}, 40);   // parked car
+    addBox(2, features::kClassVehicle, {1.5, 0.0, 9.0}, {3.0, 1.2, 11.0}, 40);     // driving car
+    addBox(3, features::kClassPedestrian, {0.0, -0.5, 7.0}, {0.4, 1.2, 7.3}, 20);  // standing
+  }
+
+  /// Moves every point of `instance` by `delta` (world frame).
+  void move(int instance, const Eigen::Vector3d& delta) {
+    for (ScenePoint& point : points_)
+      if (point.instance == instance) point.p_w += delta;
+  }
+  /// Renames instance ids in the next frames (a network segmenter's ids change frame to frame).
+  void relabel(std::map<int, int> ids) { relabel_ = std::move(ids); }
+
+  SyntheticFrame observe(const SE3d& T_w_c, TimeNs t_ns, bool stereo = true) {
+    std::normal_distribution<double> pixel_noise(0.0, 0.3), depth_noise(0.0, 0.01);
+    SyntheticFrame frame;
+    frame.t_ns = t_ns;
+    frame.stereo = stereo;
+    frame.features.image_size = cv::Size(kWidth, kHeight);
+    const SE3d T_c_w = T_w_c.inverse();
+    std::vector<int> rows;
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+      const Eigen::Vector3d p_c = T_c_w * points_[i].p_w;
+      if (p_c.z() < 0.5) continue;
+      const Eigen::Vector2d pixel =
+          kFocal * p_c.head<2>() / p_c.z() +
+          Eigen::Vector2d(320.0 + pixel_noise(rng_), 240.0 + pixel_noise(rng_));
+      if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() >= kWidth || pixel.y() >= kHeight) continue;
+      features::Keypoint keypoint;
+      keypoint.pixel = pixel;
+      keypoint.class_id = points_[i].class_id;
+      const auto renamed = relabel_.find(points_[i].instance);
+      keypoint.instance_id = renamed == relabel_.end() ? points_[i].instance : renamed->second;
+      frame.features.keypoints.push_back(keypoint);
+      frame.normalized.push_back((pixel - Eigen::Vector2d(320.0, 240.0)) / kFocal);
+      const double depth = p_c.z() * (1.0 + depth_noise(rng_));
+      frame.depth_m.push_back(depth);
+      frame.p_c.push_back(depth * frame.normalized.back().homogeneous());
+      rows.push_back(static_cast<int>(i));
+    }
+    frame.features.descriptors = cv::Mat(static_cast<int>(rows.size()), 32, CV_8UC1);
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+      std::copy(points_[rows[r]].descriptor.begin(), points_[rows[r]].descriptor.end(),
+                frame.features.descriptors.ptr<std::uint8_t>(static_cast<int>(r)));
+    }
+    return frame;
+  }
+
+ private:
+  void addBox(int instance, int class_id, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+              int count) {
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    std::uniform_int_distribution<int> byte(0, 255);
+    for (int k = 0; k < count; ++k) {
+      ScenePoint point;
+      point.p_w = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_)));
+      point.instance = instance;
+      point.class_id = class_id;
+      for (auto& b : point.descriptor)
+        b = static_cast<std::uint8_t>(byte(rng_));
+      points_.push_back(point);
+    }
+  }
+
+  std::mt19937_64 rng_;
+  std::vector<ScenePoint> points_;
+  std::map<int, int> relabel_;
+};
+
+/// Camera k: 0.25 m further forward and 0.05 m to the right per frame, turning slowly.
+SE3d cameraPose(int k) {
+  return SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.01 * k, Eigen::Vector3d::UnitY())),
+              Eigen::Vector3d(0.05 * k, 0.0, 0.25 * k));
+}
+
+TimeNs frameTime(int k) {
+  return 1'000'000'000 + 50'000'000LL * k;
+}
+
+SE3d curFromPrev(int k) {
+  return cameraPose(k).inverse() * cameraPose(k - 1);
+}
+
+MovingObjectOptions geometric() {
+  MovingObjectOptions options;
+  options.mode = DynamicMode::kSemanticGeometric;
+  return options;
+}
+
+MovingObjectReport detectAfter(MovingObjectDetector& detector, const SyntheticFrame& previous,
+                               const SyntheticFrame& current, const SE3d& T_cur_prev) {
+  const FrameObservations previous_view = previous.view();
+  return detector.detect(&previous_view, current.view(), T_cur_prev);
+}
+
+const ObjectDecision& decisionOf(const MovingObjectReport& report, int instance) {
+  for (const ObjectDecision& object : report.objects)
+    if (object.instance_id == instance) return object;
+  throw std::runtime_error("no decision for instance " + std::to_string(instance));
+}
+
+int dropped(const SyntheticFrame& frame, const MovingObjectReport& report, int instance) {
+  int n = 0;
+  for (std::size_t i = 0; i < frame.features.size(); ++i)
+    n += report.drop[i] && frame.features.keypoints[i].instance_id == instance;
+  return n;
+}
+
+TEST(MovingObjectDetectorTest, DropsOnlyTheObjectThatMoves) {
+  Scene scene(1);
+  MovingObjectDetector detector(geometric(), camera());
+  const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+  const MovingObjectReport first = detector.detect(nullptr, f0.view(), SE3d());
+  // Nothing to compare with yet: every object is unverified and, by default, dropped.
+  EXPECT_EQ(decisionOf(first, 1).decision, ObjectState::kUnverified);
+  EXPECT_EQ(first.dropped, f0.count(1) + f0.count(2) + f0.count(3));
+
+  scene.move(2, Eigen::Vector3d(-0.6, 0.0, 0.0));  // 12 m/s across the view
+  const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+  const MovingObjectReport report = detectAfter(detector, f0, f1, curFromPrev(1));
+  EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kStatic);
+  EXPECT_EQ(decisionOf(report, 2).decision, ObjectState::kMoving);
+  EXPECT_EQ(decisionOf(report, 3).decision, ObjectState::kStatic);
+  EXPECT_GE(decisionOf(report, 2).pairs, 30);
+  EXPECT_EQ(decisionOf(report, 2).tested, 10);
+  EXPECT_GE(decisionOf(report, 2).votes, 9);
+  EXPECT_EQ(dropped(f1, report, 1), 0);
+  EXPECT_EQ(dropped(f1, report, 2), f1.count(2));
+  EXPECT_EQ(dropped(f1, report, 3), 0);
+  EXPECT_EQ(report.dropped, f1.count(2));
+  // The moving car's pairs name its keypoints in the previous frame (their map points go).
+  EXPECT_EQ(static_cast<int>(report.moving_previous_keypoints.size()), decisionOf(report, 2).pairs);
+  for (const int i : report.moving_previous_keypoints)
+    EXPECT_EQ(f0.features.keypoints[static_cast<std::size_t>(i)].instance_id, 2);
+  EXPECT_GT(report.background_pairs, 250);
+}
+
+TEST(MovingObjectDetectorTest, StereoSeesMotionAlongTheEpipolarLineMonoDoesNot) {
+  for (const bool stereo : {true, false}) {
+    Scene scene(2);
+    MovingObjectDetector detector(geometric(), camera());
+    const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0), stereo);
+    // The car drives with the camera's own translation, 4 times as fast: every point stays on
+    // its epipolar line (the paper's test alone cannot see it).
+    scene.move(2, 4.0 * (cameraPose(1).t - cameraPose(0).t));
+    const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1), stereo);
+    const MovingObjectReport report = detectAfter(detector, f0, f1, curFromPrev(1));
+    EXPECT_EQ(decisionOf(report, 2).decision, stereo ? ObjectState::kMoving : ObjectState::kStatic)
+        << (stereo ? "stereo" : "mono");
+    EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kStatic);
+  }
+}
+
+TEST(MovingObjectDetectorTest, HysteresisNeedsTwoFramesToChangeAVerifiedState) {
+  Scene scene(3);
+  MovingObjectDetector detector(geometric(), camera());
+  std::vector<SyntheticFrame> frames{scene.observe(cameraPose(0), frameTime(0))};
+  std::vector<MovingObjectReport> reports{detector.detect(nullptr, frames[0].view(), SE3d())};
+  for (int k = 1; k <= 6; ++k) {
+    if (k <= 2) scene.move(2, Eigen::Vector3d(-0.6, 0.0, 0.0));  // car 2 drives, then stops
+    if (k >= 4) scene.move(1, Eigen::Vector3d(0.0, 0.0, 0.5));   // car 1 pulls out
+    frames.push_back(scene.observe(cameraPose(k), frameTime(k)));
+    reports.push_back(detectAfter(detector, frames[k - 1], frames[k], curFromPrev(k)));
+  }
+  const auto state = [&](int k, int instance) { return decisionOf(reports[k], instance).decision; };
+  EXPECT_EQ(state(2, 2), ObjectState::kMoving);
+  EXPECT_EQ(state(3, 2), ObjectState::kMoving);  // first static frame: still moving
+  EXPECT_EQ(state(4, 2), ObjectState::kStatic);  // second one clears it
+  EXPECT_EQ(state(3, 1), ObjectState::kStatic);
+  EXPECT_EQ(state(4, 1), ObjectState::kStatic);  // first moving frame of a static car
+  EXPECT_EQ(state(5, 1), ObjectState::kMoving);
+  EXPECT_EQ(decisionOf(reports[4], 1).votes, decisionOf(reports[4], 1).tested);
+}
+
+TEST(MovingObjectDetectorTest, ObjectsKeepTheirStateWhenTheSegmenterRenumbersThem) {
+  Scene scene(4);
+  MovingObjectDetector detector(geometric(), camera());
+  const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+  detector.detect(nullptr, f0.view(), SE3d());
+  scene.move(2, Eigen::Vector3d(-0.6, 0.0, 0.0));
+  const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+  detectAfter(detector, f0, f1, curFromPrev(1));
+  // Car 2 stops, and the segmenter swaps the two cars' ids: the parked car (now id 2) must stay
+  // static and the stopped car (now id 1) is still moving for one frame (hysteresis).
+  scene.relabel({{1, 2}, {2, 1}});
+  const SyntheticFrame f2 = scene.observe(cameraPose(2), frameTime(2));
+  const MovingObjectReport report = detectAfter(detector, f1, f2, curFromPrev(2));
+  EXPECT_EQ(decisionOf(report, 2).decision, ObjectState::kStatic);
+  EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kMoving);
+  EXPECT_EQ(dropped(f2, report, 2), 0);
+}
+
+TEST(MovingObjectDetectorTest, SameInputSameDecisions) {
+  const auto run = [] {
+    Scene scene(5);
+    MovingObjectDetector detector(geometric(), camera());
+    const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+    scene.move(2, Eigen::Vector3d(-0.1, 0.02, 0.0));
+    const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+    return detectAfter(detector, f0, f1, curFromPrev(1));
+  };
+  const MovingObjectReport a = run(), b = run();
+  ASSERT_EQ(a.objects.size(), b.objects.size());
+  for (std::size_t i = 0; i < a.objects.size(); ++i) {
+    EXPECT_EQ(a.objects[i].tested, b.objects[i].tested);
+    EXPECT_EQ(a.objects[i].votes, b.objects[i].votes);
+    EXPECT_EQ(a.objects[i].max_distance_px, b.objects[i].max_distance_px);
+  }
+  EXPECT_EQ(a.drop, b.drop);
+}
+
+TEST(MovingObjectDetectorTest, SemanticModeDropsEveryMovableObjectUntested) {
+  Scene scene(6);
+  MovingObjectOptions options;
+  options.mode = DynamicMode::kSemantic;
+  MovingObjectDetector detector(options, camera());
+  const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+  const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+  const MovingObjectReport report = detectAfter(detector, f0, f1, curFromPrev(1));
+  EXPECT_EQ(report.dropped, f1.count(1) + f1.count(2) + f1.count(3));
+  for (const ObjectDecision& object : report.objects)
+    EXPECT_EQ(object.tested, 0);
+  options.mode = DynamicMode::kOff;
+  MovingObjectDetector off(options, camera());
+  const MovingObjectReport none = detectAfter(off, f0, f1, curFromPrev(1));
+  EXPECT_EQ(none.dropped, 0);
+  EXPECT_TRUE(none.objects.empty());
+}
+
+TEST(MovingObjectDetectorTest, OptionsAreCheckedByName) {
+  MovingObjectOptions options;
+  options.moving_vote_share = 1.5;
+  try {
+    options.validate();
+    FAIL() << "no error";
+  } catch (const OptionError& e) {
+    EXPECT_NE(std::string(e.what()).find("dynamic.moving_vote_share"), std::string::npos);
+  }
+  EXPECT_THROW(parseDynamicMode("semantic+geometric", "--dynamic"), OptionError);
+  EXPECT_EQ(parseDynamicMode("semantic-geometric", "--dynamic"), DynamicMode::kSemanticGeometric);
+}
+
+}  // namespace
+}  // namespace superdyna::dynamic
