@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "superdyna/core/error.h"
+#include "superdyna/dynamic/relative_motion.h"
 #include "superdyna/features/matcher.h"
 
 namespace superdyna::dynamic {
@@ -125,9 +126,22 @@ struct MovingObjectDetector::Thresholds {
 };
 
 MovingObjectDetector::MovingObjectDetector(const MovingObjectOptions& options,
-                                           const CameraModel& camera)
-    : options_(options), camera_(camera), focal_px_(0.5 * (camera.fx() + camera.fy())) {
+                                           const CameraModel& camera, double pyramid_scale_factor)
+    : options_(options),
+      camera_(camera),
+      focal_px_(0.5 * (camera.fx() + camera.fy())),
+      pyramid_scale_factor_(pyramid_scale_factor) {
   options_.validate();
+  if (!(pyramid_scale_factor >= 1.0)) {
+    throw OptionError("orb.scale_factor", "the moving-object test needs a pyramid scale >= 1");
+  }
+}
+
+double MovingObjectDetector::pairScale(const Pair& pair, const FrameObservations& previous,
+                                       const FrameObservations& current) const {
+  const int octave = std::max(previous.features->keypoints[pair.previous].octave,
+                              current.features->keypoints[pair.current].octave);
+  return std::pow(pyramid_scale_factor_, octave);
 }
 
 void MovingObjectDetector::reset() {
@@ -165,6 +179,20 @@ std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
   return pairs;
 }
 
+SE3d MovingObjectDetector::refinedMotion(const std::vector<Pair>& background,
+                                         const FrameObservations& previous,
+                                         const FrameObservations& current,
+                                         const SE3d& T_cur_prev) const {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observed;
+  for (const Pair& pair : background) {
+    if (!previous.hasDepth(pair.previous)) continue;
+    points.push_back((*previous.p_c)[pair.previous]);
+    observed.push_back((*current.normalized)[pair.current]);
+  }
+  return refineRelativePose(points, observed, T_cur_prev, focal_px_);
+}
+
 MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
     const std::vector<Pair>& pairs, const FrameObservations& previous,
     const FrameObservations& current, const SE3d& T_cur_prev) const {
@@ -173,8 +201,9 @@ MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
   for (const Pair& pair : pairs) {
     const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
     const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
+    const double scale = pairScale(pair, previous, current);
     const auto push = [&](ResidualTest test, std::optional<double> residual) {
-      if (residual) residuals[index(test)].push_back(*residual);
+      if (residual) residuals[index(test)].push_back(*residual / scale);
     };
     if (translating) {
       push(ResidualTest::kEpipolar, epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_));
@@ -223,7 +252,7 @@ void MovingObjectDetector::testObject(const std::vector<Pair>& pairs,
       residual = rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
     }
     if (!residual) continue;
-    const double threshold = thresholds.px[index(test)];
+    const double threshold = pairScale(pair, previous, current) * thresholds.px[index(test)];
     ++decision.tested;
     if (*residual > threshold) ++decision.votes;
     if (*residual - threshold > worst_excess) {
@@ -327,14 +356,17 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
     }
     const std::vector<Pair> background = matchPairs(*previous, current, T_cur_prev, false);
     report.background_pairs = static_cast<int>(background.size());
-    const Thresholds thresholds = backgroundThresholds(background, *previous, current, T_cur_prev);
+    const SE3d T = options_.refine_motion
+                       ? refinedMotion(background, *previous, current, T_cur_prev)
+                       : T_cur_prev;
+    const Thresholds thresholds = backgroundThresholds(background, *previous, current, T);
     const std::uint64_t frame_seed =
         mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
     for (auto& [instance, object] : objects) {
       const std::vector<Pair>& pairs = pairs_of[instance];
       object.pairs = static_cast<int>(pairs.size());
       if (object.pairs >= options_.min_pairs) {
-        testObject(pairs, *previous, current, T_cur_prev, thresholds,
+        testObject(pairs, *previous, current, T, thresholds,
                    frame_seed ^ static_cast<std::uint64_t>(instance), object);
       }
     }

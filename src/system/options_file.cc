@@ -222,6 +222,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"min_votes", &t.dynamic.min_votes},
         {"min_translation_m", &t.dynamic.min_translation_m},
         {"stereo_reprojection", &t.dynamic.stereo_reprojection},
+        {"refine_motion", &t.dynamic.refine_motion},
         {"static_confirmations", &t.dynamic.static_confirmations},
         {"moving_confirmations", &t.dynamic.moving_confirmations},
         {"drop_unverified", &t.dynamic.drop_unverified},

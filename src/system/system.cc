@@ -153,6 +153,7 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
   timings_.total.stereo_ms += result.times.stereo_ms;
   timings_.total.track_ms += result.times.track_ms;
   timings_.total.local_ba_ms += result.times.local_ba_ms;
+  timings_.total.moving_objects_ms += result.times.moving_objects_ms;
   if (result.state == tracking::TrackingState::kLost ||
       result.state == tracking::TrackingState::kRecentlyLost) {
     ++lost_frames_;  // bridged by the IMU or not, the frame was not tracked

@@ -121,7 +121,7 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
       imu_(options.use_imu ? imu : std::nullopt),
       baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
       mapper_(mapping, cameras_, imu_),
-      moving_detector_(options.dynamic, camera0_) {
+      moving_detector_(options.dynamic, camera0_, pyramid.scale_factor) {
   options_.validate();
   map_ = newMap();
   if (isMonocular()) {

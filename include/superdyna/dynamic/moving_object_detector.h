@@ -9,18 +9,22 @@
 //    where a static point lands (its stereo point moved by the prediction, or without depth its
 //    bearing rotated, in a doubled radius); keypoints of movable objects within a wide radius
 //    around that place (object_search_radius_px: a mover's own image motion), class-wise.
-// 2. Threshold. Every background pair's residual (motion_residual.h) under each test; the
-//    threshold of a test is max(min_threshold_px, threshold_scale * median background residual).
+// 2. Motion. With stereo, the prediction is refined on the background pairs (refine_motion,
+//    relative_motion.h): its velocity error would make near static objects look moving.
+// 3. Threshold. Every background pair's residual (motion_residual.h) under each test, divided by
+//    the pair's keypoint scale (scale_factor^octave of its coarser keypoint: an ORB corner found
+//    at octave 4 is only located to about 2 px); the threshold of a test is max(min_threshold_px,
+//    threshold_scale * median scaled background residual), times the scale of the pair tested.
 //    The paper takes the mean background distance; the median ignores the background's own
 //    mismatches and unlabelled movers. Too few background pairs: fallback_threshold_px.
-// 3. Objects. The pairs of each current instance are grouped; objects with fewer than min_pairs
+// 4. Objects. The pairs of each current instance are grouped; objects with fewer than min_pairs
 //    are unverified this frame. Otherwise up to max_tested_pairs pairs are drawn (seeded, so that
 //    deterministic runs stay bit-identical) and tested: reprojection where the previous keypoint
 //    has stereo depth (stereo_reprojection), else epipolar, or rotation transfer when the
 //    predicted translation is below min_translation_m. The object moves in this frame when at
 //    least max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
 //    threshold of their test (the paper: any one pair).
-// 4. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
+// 5. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
 //    object inherits the track of the previous instance most of its pairs come from (greedily,
 //    strongest links first, each previous track to one object; a new track when none). A new
 //    track takes its first frame's verdict; a static track turns moving after
@@ -51,7 +55,7 @@ struct MovingObjectOptions {
   DynamicMode mode = DynamicMode::kOff;
   int min_pairs = 1;                   ///< Fewer pairs: unverified this frame, >= 1.
   int max_tested_pairs = 10;           ///< Pairs drawn per object, >= 1.
-  double threshold_scale = 3.0;        ///< Times the median background residual, > 0.
+  double threshold_scale = 2.5;        ///< Times the median background residual, > 0.
   double min_threshold_px = 1.0;       ///< Lower bound of a threshold [px], > 0.
   double fallback_threshold_px = 3.0;  ///< Threshold without enough background pairs [px], > 0.
   int min_background_pairs = 20;       ///< Background pairs a test's threshold needs, >= 1.
@@ -59,9 +63,12 @@ struct MovingObjectOptions {
   int min_votes = 2;                   ///< ... and at least this many (capped by tested), >= 1.
   double min_translation_m = 0.01;     ///< Below: rotation transfer instead of epipolar, >= 0.
   bool stereo_reprojection = true;     ///< Test pairs with previous stereo depth by reprojection.
-  int static_confirmations = 2;        ///< Static frames in a row that clear a moving track, >= 1.
-  int moving_confirmations = 2;        ///< Moving frames in a row that set a static track, >= 1.
-  bool drop_unverified = true;         ///< Drop objects never verified (new, too few pairs).
+  /// Refine the predicted relative pose on the background pairs with stereo depth before testing
+  /// (relative_motion.h); without stereo the prediction is used as it is.
+  bool refine_motion = true;
+  int static_confirmations = 2;  ///< Static frames in a row that clear a moving track, >= 1.
+  int moving_confirmations = 2;  ///< Moving frames in a row that set a static track, >= 1.
+  bool drop_unverified = true;   ///< Drop objects never verified (new, too few pairs).
   /// The tracker also culls the local map's points whose instance id is that of a moving object:
   /// right when instance ids are stable over the sequence (dataset masks); turn it off for
   /// segmenters that renumber instances every frame (then only the points of the moving object's
@@ -120,8 +127,11 @@ struct MovingObjectReport {
 
 class MovingObjectDetector {
  public:
-  /// `camera` is the camera both frames come from (projection of predicted points).
-  MovingObjectDetector(const MovingObjectOptions& options, const CameraModel& camera);
+  /// `camera` is the camera both frames come from (projection of predicted points);
+  /// `pyramid_scale_factor` the extractor's scale step between octaves (residuals are compared in
+  /// units of the coarser keypoint's scale, see the file comment).
+  MovingObjectDetector(const MovingObjectOptions& options, const CameraModel& camera,
+                       double pyramid_scale_factor = 1.2);
 
   /// The decisions for `current`; `previous` may be null (first frame of a map: nothing is tested).
   /// T_cur_prev maps previous-camera points into the current camera.
@@ -143,8 +153,15 @@ class MovingObjectDetector {
   };
   struct Thresholds;
 
+  /// The position uncertainty of a pair relative to level 0: scale_factor^octave of its coarser
+  /// keypoint.
+  double pairScale(const Pair& pair, const FrameObservations& previous,
+                   const FrameObservations& current) const;
   std::vector<Pair> matchPairs(const FrameObservations& previous, const FrameObservations& current,
                                const SE3d& T_cur_prev, bool movable) const;
+  /// T_cur_prev refined on the background pairs with previous stereo depth (relative_motion.h).
+  SE3d refinedMotion(const std::vector<Pair>& background, const FrameObservations& previous,
+                     const FrameObservations& current, const SE3d& T_cur_prev) const;
   Thresholds backgroundThresholds(const std::vector<Pair>& pairs, const FrameObservations& previous,
                                   const FrameObservations& current, const SE3d& T_cur_prev) const;
   void testObject(const std::vector<Pair>& pairs, const FrameObservations& previous,
@@ -163,6 +180,7 @@ class MovingObjectDetector {
   MovingObjectOptions options_;
   CameraModel camera_;
   double focal_px_ = 1.0;
+  double pyramid_scale_factor_ = 1.2;
   std::map<int, Track> tracks_;
   std::map<int, int> track_of_previous_instance_;
   int next_track_ = 0;
