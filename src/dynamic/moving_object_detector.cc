@@ -118,6 +118,11 @@ void MovingObjectOptions::validate() const {
   require(max_hamming >= 0, "max_hamming", "must be >= 0");
   require(max_l2_distance >= 0.0, "max_l2_distance", "must be >= 0");
   require(seed >= 0, "seed", "must be >= 0");
+  require(geometric_cell_px >= 8, "geometric_cell_px", "must be >= 8");
+  require(geometric_min_outliers >= 1, "geometric_min_outliers", "must be >= 1");
+  require(geometric_outlier_share > 0.0 && geometric_outlier_share <= 1.0,
+          "geometric_outlier_share", "must be in (0, 1]");
+  require(geometric_threshold_factor >= 1.0, "geometric_threshold_factor", "must be >= 1");
 }
 
 struct MovingObjectDetector::Thresholds {
@@ -151,19 +156,22 @@ void MovingObjectDetector::reset() {
 
 std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
     const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
-    bool movable) const {
+    bool movable, bool wide, const std::vector<Pair>& already) const {
   const features::FeatureSet& query = *previous.features;
+  std::vector<char> skip(query.size(), 0);
+  for (const Pair& pair : already)
+    skip[static_cast<std::size_t>(pair.previous)] = 1;
   std::vector<Eigen::Vector2d> predicted(query.size(), Eigen::Vector2d::Constant(kNaN));
   for (std::size_t i = 0; i < query.size(); ++i) {
     const Eigen::Vector2d& x = (*previous.normalized)[i];
-    if (isMovable(query.keypoints[i]) != movable || !finite(x)) continue;
+    if (isMovable(query.keypoints[i]) != movable || !finite(x) || skip[i]) continue;
     const Eigen::Vector3d p_cur = previous.hasDepth(i)
                                       ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
                                       : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
     if (const auto pixel = camera_.project(p_cur)) predicted[i] = *pixel;
   }
   features::ProjectionMatchOptions search;
-  search.radius_px = movable           ? options_.object_search_radius_px
+  search.radius_px = wide              ? options_.object_search_radius_px
                      : current.depth_m ? options_.background_radius_px
                                        : 2.0 * options_.background_radius_px;
   search.ratio = options_.match_ratio;
@@ -228,39 +236,80 @@ MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
   return thresholds;
 }
 
+std::optional<std::pair<double, double>> MovingObjectDetector::pairResidual(
+    const Pair& pair, const FrameObservations& previous, const FrameObservations& current,
+    const SE3d& T_cur_prev, const Thresholds& thresholds) const {
+  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
+  const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
+  const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
+  ResidualTest test = translating ? ResidualTest::kEpipolar : ResidualTest::kRotationTransfer;
+  std::optional<double> residual;
+  if (options_.stereo_reprojection && previous.hasDepth(pair.previous)) {
+    test = ResidualTest::kReprojection;
+    residual = reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_);
+  } else if (translating) {
+    residual = epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+  } else {
+    residual = rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+  }
+  if (!residual) return std::nullopt;
+  return std::make_pair(*residual, pairScale(pair, previous, current) * thresholds.px[index(test)]);
+}
+
 void MovingObjectDetector::testObject(const std::vector<Pair>& pairs,
                                       const FrameObservations& previous,
                                       const FrameObservations& current, const SE3d& T_cur_prev,
                                       const Thresholds& thresholds, std::uint64_t draw_seed,
                                       ObjectDecision& decision) const {
-  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
   const std::vector<Pair> drawn =
       drawSubset(pairs, static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
   double worst_excess = -std::numeric_limits<double>::infinity();
   for (const Pair& pair : drawn) {
-    const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
-    const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
-    ResidualTest test = translating ? ResidualTest::kEpipolar : ResidualTest::kRotationTransfer;
-    std::optional<double> residual;
-    if (options_.stereo_reprojection && previous.hasDepth(pair.previous)) {
-      test = ResidualTest::kReprojection;
-      residual =
-          reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_);
-    } else if (translating) {
-      residual = epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
-    } else {
-      residual = rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
-    }
-    if (!residual) continue;
-    const double threshold = pairScale(pair, previous, current) * thresholds.px[index(test)];
+    const auto tested = pairResidual(pair, previous, current, T_cur_prev, thresholds);
+    if (!tested) continue;
+    const auto [residual, threshold] = *tested;
     ++decision.tested;
-    if (*residual > threshold) ++decision.votes;
-    if (*residual - threshold > worst_excess) {
-      worst_excess = *residual - threshold;
-      decision.max_distance_px = *residual;
+    if (residual > threshold) ++decision.votes;
+    if (residual - threshold > worst_excess) {
+      worst_excess = residual - threshold;
+      decision.max_distance_px = residual;
       decision.threshold_px = threshold;
     }
   }
+}
+
+std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<Pair>& background,
+                                                              const FrameObservations& previous,
+                                                              const FrameObservations& current,
+                                                              const SE3d& T_cur_prev,
+                                                              const Thresholds& thresholds,
+                                                              MovingObjectReport& report) const {
+  const cv::Size size = current.features->image_size;
+  const int cell = options_.geometric_cell_px;
+  const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
+  std::vector<int> outliers(static_cast<std::size_t>(cols * rows), 0);
+  std::vector<int> tested(outliers.size(), 0);
+  for (const Pair& pair : background) {
+    const auto result = pairResidual(pair, previous, current, T_cur_prev, thresholds);
+    if (!result) continue;
+    const std::size_t k = cellOf(current.features->keypoints[pair.current].pixel, cols, rows);
+    ++tested[k];
+    if (result->first > options_.geometric_threshold_factor * result->second) ++outliers[k];
+  }
+  std::vector<char> moving(outliers.size(), 0);
+  for (std::size_t k = 0; k < moving.size(); ++k) {
+    moving[k] = outliers[k] >= options_.geometric_min_outliers &&
+                outliers[k] >= options_.geometric_outlier_share * tested[k];
+    report.moving_background_cells += moving[k];
+  }
+  return moving;
+}
+
+std::size_t MovingObjectDetector::cellOf(const Eigen::Vector2d& pixel, int cols, int rows) const {
+  const int cell = options_.geometric_cell_px;
+  const int c = std::clamp(static_cast<int>(pixel.x()) / cell, 0, cols - 1);
+  const int r = std::clamp(static_cast<int>(pixel.y()) / cell, 0, rows - 1);
+  return static_cast<std::size_t>(r * cols + c);
 }
 
 std::map<int, int> MovingObjectDetector::associateTracks(
@@ -324,6 +373,43 @@ void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested
                      (track.state == ObjectState::kUnverified && options_.drop_unverified);
 }
 
+void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
+                                       const FrameObservations& previous,
+                                       const FrameObservations& current, const SE3d& T_cur_prev,
+                                       const Thresholds& thresholds,
+                                       std::map<int, ObjectDecision>& objects) const {
+  const std::uint64_t frame_seed = mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
+  for (auto& [instance, object] : objects) {
+    const auto found = pairs_of.find(instance);
+    if (found == pairs_of.end()) continue;
+    object.pairs = static_cast<int>(found->second.size());
+    if (object.pairs >= options_.min_pairs) {
+      testObject(found->second, previous, current, T_cur_prev, thresholds,
+                 frame_seed ^ static_cast<std::uint64_t>(instance), object);
+    }
+  }
+}
+
+void MovingObjectDetector::dropKeypoints(const std::map<int, ObjectDecision>& objects,
+                                         const std::vector<char>& moving_cells,
+                                         const FrameObservations& current,
+                                         MovingObjectReport& report) const {
+  const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
+  const cv::Size size = current.features->image_size;
+  const int cell = options_.geometric_cell_px;
+  const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    const bool drop =
+        isMovable(keypoints[i])
+            ? objects.at(keypoints[i].instance_id).dropped
+            : !moving_cells.empty() && moving_cells[cellOf(keypoints[i].pixel, cols, rows)];
+    if (!drop) continue;
+    report.drop[i] = 1;
+    ++report.dropped;
+    if (!isMovable(keypoints[i])) ++report.geometric_dropped;
+  }
+}
+
 void MovingObjectDetector::forgetUnseenTracks(const std::map<int, int>& track_of_instance) {
   std::map<int, Track> seen;
   for (const auto& [instance, track] : track_of_instance) {
@@ -338,7 +424,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
   MovingObjectReport report;
   const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
   report.drop.assign(keypoints.size(), 0);
-  if (options_.mode == DynamicMode::kOff) return report;
+  if (options_.mode == DynamicMode::kOff && !options_.geometric) return report;
 
   std::map<int, ObjectDecision> objects;  // by current instance id
   for (const features::Keypoint& keypoint : keypoints) {
@@ -350,25 +436,30 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
   }
 
   std::map<int, std::vector<Pair>> pairs_of;  // by current instance id
-  if (options_.mode == DynamicMode::kSemanticGeometric && previous) {
-    for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true)) {
-      pairs_of[keypoints[pair.current].instance_id].push_back(pair);
-    }
-    const std::vector<Pair> background = matchPairs(*previous, current, T_cur_prev, false);
+  std::vector<char> moving_cells;
+  const bool test_objects = options_.mode == DynamicMode::kSemanticGeometric;
+  if (previous && (test_objects || options_.geometric)) {
+    const std::vector<Pair> background =
+        matchPairs(*previous, current, T_cur_prev, false, false, {});
     report.background_pairs = static_cast<int>(background.size());
     const SE3d T = options_.refine_motion
                        ? refinedMotion(background, *previous, current, T_cur_prev)
                        : T_cur_prev;
     const Thresholds thresholds = backgroundThresholds(background, *previous, current, T);
-    const std::uint64_t frame_seed =
-        mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
-    for (auto& [instance, object] : objects) {
-      const std::vector<Pair>& pairs = pairs_of[instance];
-      object.pairs = static_cast<int>(pairs.size());
-      if (object.pairs >= options_.min_pairs) {
-        testObject(pairs, *previous, current, T, thresholds,
-                   frame_seed ^ static_cast<std::uint64_t>(instance), object);
+    if (options_.geometric) {
+      // Background features that left the narrow search radius (fast unlabelled movers) are
+      // searched again as widely as objects; only the cell test sees those pairs.
+      std::vector<Pair> all = background;
+      for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, false, true, background)) {
+        all.push_back(pair);
       }
+      moving_cells = movingBackgroundCells(all, *previous, current, T, thresholds, report);
+    }
+    if (test_objects) {
+      for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true, true, {})) {
+        pairs_of[keypoints[pair.current].instance_id].push_back(pair);
+      }
+      testObjects(pairs_of, *previous, current, T, thresholds, objects);
     }
   }
 
@@ -400,13 +491,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
   forgetUnseenTracks(track_of_instance);
   track_of_previous_instance_ = std::move(track_of_instance);
 
-  for (std::size_t i = 0; i < keypoints.size(); ++i) {
-    if (!isMovable(keypoints[i])) continue;
-    if (objects[keypoints[i].instance_id].dropped) {
-      report.drop[i] = 1;
-      ++report.dropped;
-    }
-  }
+  dropKeypoints(objects, moving_cells, current, report);
   std::sort(report.moving_previous_keypoints.begin(), report.moving_previous_keypoints.end());
   return report;
 }

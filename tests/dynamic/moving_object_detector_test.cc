@@ -33,6 +33,7 @@ struct SyntheticFrame {
   std::vector<Eigen::Vector2d> normalized;
   std::vector<Eigen::Vector3d> p_c;
   std::vector<double> depth_m;
+  std::vector<std::size_t> point_of_keypoint;  ///< The scene point each keypoint sees.
   bool stereo = true;
 
   FrameObservations view() const {
@@ -61,6 +62,34 @@ class Scene {
     addBox(1, features::kClassVehicle, {-3.0, 0.0, 8.0}, {-1.5, 1.2, 10.0}, 40);   // parked car
     addBox(2, features::kClassVehicle, {1.5, 0.0, 9.0}, {3.0, 1.2, 11.0}, 40);     // driving car
     addBox(3, features::kClassPedestrian, {0.0, -0.5, 7.0}, {0.4, 1.2, 7.3}, 20);  // standing
+  }
+
+  /// A box of background-class points (no instance label), remembered under `tag`.
+  void addUnlabelledBox(int tag, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+    const std::size_t first = points_.size();
+    addBox(0, features::kClassBackground, lo, hi, 60);
+    for (std::size_t i = first; i < points_.size(); ++i)
+      unlabelled_[tag].push_back(i);
+  }
+  void moveUnlabelled(int tag, const Eigen::Vector3d& delta) {
+    for (const std::size_t i : unlabelled_[tag])
+      points_[i].p_w += delta;
+  }
+  /// Keypoints of `frame` on the unlabelled box `tag` (dropped by `report` when given).
+  int countUnlabelled(const SyntheticFrame& frame, int tag,
+                      const MovingObjectReport* report = nullptr) const {
+    int n = 0;
+    for (std::size_t k = 0; k < frame.point_of_keypoint.size(); ++k) {
+      const auto& box = unlabelled_.at(tag);
+      const bool on_box =
+          std::find(box.begin(), box.end(), frame.point_of_keypoint[k]) != box.end();
+      n += on_box && (!report || report->drop[k]);
+    }
+    return n;
+  }
+  int countUnlabelled(const SyntheticFrame& frame, int tag,
+                      const MovingObjectReport& report) const {
+    return countUnlabelled(frame, tag, &report);
   }
 
   /// A parked car 2 m in front of the first camera.
@@ -102,6 +131,7 @@ class Scene {
       frame.depth_m.push_back(depth);
       frame.p_c.push_back(depth * frame.normalized.back().homogeneous());
       rows.push_back(static_cast<int>(i));
+      frame.point_of_keypoint.push_back(i);
     }
     frame.features.descriptors = cv::Mat(static_cast<int>(rows.size()), 32, CV_8UC1);
     for (std::size_t r = 0; r < rows.size(); ++r) {
@@ -130,6 +160,7 @@ class Scene {
   std::mt19937_64 rng_;
   std::vector<ScenePoint> points_;
   std::map<int, int> relabel_;
+  std::map<int, std::vector<std::size_t>> unlabelled_;
 };
 
 /// Camera k: 0.25 m further forward and 0.05 m to the right per frame, turning slowly.
@@ -309,6 +340,35 @@ TEST(MovingObjectDetectorTest, AVelocityErrorOfThePredictionDoesNotMoveANearPark
     const MovingObjectReport report = detectAfter(detector, f0, f1, predicted);
     EXPECT_EQ(decisionOf(report, 4).decision, refine ? ObjectState::kStatic : ObjectState::kMoving)
         << (refine ? "refined" : "predicted");
+    EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kStatic);
+  }
+}
+
+TEST(MovingObjectDetectorTest, TheGeometricTestDropsAnUnlabelledMover) {
+  // A shopping cart the segmenter does not know: background class, but it moves.
+  for (const bool geometric : {false, true}) {
+    Scene scene(9);
+    scene.addUnlabelledBox(5, {-1.0, 0.2, 6.0}, {0.2, 1.0, 6.6});
+    MovingObjectOptions options;
+    options.mode = DynamicMode::kSemanticGeometric;
+    options.geometric = geometric;
+    MovingObjectDetector detector(options, camera());
+    const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+    scene.moveUnlabelled(5, Eigen::Vector3d(0.3, 0.0, 0.0));
+    const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+    const MovingObjectReport report = detectAfter(detector, f0, f1, curFromPrev(1));
+    const int on_cart = scene.countUnlabelled(f1, 5, report);
+    const int cart = scene.countUnlabelled(f1, 5);
+    ASSERT_GE(cart, 30);
+    if (geometric) {
+      EXPECT_GE(on_cart, cart * 3 / 4);
+      EXPECT_GE(report.moving_background_cells, 1);
+      // Static background is kept: few keypoints beyond the cart's own cells go.
+      EXPECT_LE(report.geometric_dropped - on_cart, 25);
+    } else {
+      EXPECT_EQ(on_cart, 0);
+      EXPECT_EQ(report.geometric_dropped, 0);
+    }
     EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kStatic);
   }
 }

@@ -120,6 +120,11 @@ dynamic:
   max_hamming: 60
   max_l2_distance: 0.9
   seed: 7
+  geometric: true
+  geometric_cell_px: 64
+  geometric_min_outliers: 5
+  geometric_outlier_share: 0.6
+  geometric_threshold_factor: 1.5
 mono_init:
   min_features: 120
   min_matches: 90
@@ -201,7 +206,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 142u);  // every key of the ten sections
+  EXPECT_EQ(written.size(), 147u);  // every key of the ten sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

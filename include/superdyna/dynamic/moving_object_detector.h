@@ -33,6 +33,12 @@
 //    dropped, those of never-verified ones too when drop_unverified.
 //
 // mode kSemantic drops every movable keypoint (DynaSLAM-style) without testing; kOff drops none.
+//
+// `geometric` (on top of any mode) catches movers the segmenter does not label (the paper's
+// failure case: a shopping cart): the background pairs are tested like an object's, grouped into
+// image cells of geometric_cell_px, and every background keypoint in a cell where at least
+// geometric_min_outliers pairs, and geometric_outlier_share of the cell's pairs, exceed
+// geometric_threshold_factor times their threshold is dropped.
 
 #include <cstdint>
 #include <map>
@@ -80,6 +86,13 @@ struct MovingObjectOptions {
   int max_hamming = 64;                    ///< Largest accepted Hamming distance [bits], >= 0.
   double max_l2_distance = 1.0;            ///< Largest accepted float distance, >= 0.
   int seed = 1;  ///< Seeds the draw of tested pairs (mixed with the frame time), >= 0.
+  /// The geometric test of background features, on top of any mode (see the file comment).
+  bool geometric = false;
+  int geometric_cell_px = 48;            ///< Image cells the outliers are grouped in [px], >= 8.
+  int geometric_min_outliers = 3;        ///< Outlying background pairs a moving cell needs, >= 1.
+  double geometric_outlier_share = 0.5;  ///< ... and this share of its tested pairs, (0, 1].
+  /// A background pair is outlying beyond this many times its test's threshold, >= 1.
+  double geometric_threshold_factor = 2.0;
   void validate() const;
   bool operator==(const MovingObjectOptions&) const = default;
 };
@@ -122,7 +135,9 @@ struct MovingObjectReport {
   /// be culled).
   std::vector<int> moving_previous_keypoints;
   int background_pairs = 0;
-  int dropped = 0;  ///< Keypoints with drop set.
+  int dropped = 0;                  ///< Keypoints with drop set.
+  int moving_background_cells = 0;  ///< Image cells the geometric test found moving.
+  int geometric_dropped = 0;        ///< Background keypoints dropped in those cells.
 };
 
 class MovingObjectDetector {
@@ -157,13 +172,37 @@ class MovingObjectDetector {
   /// keypoint.
   double pairScale(const Pair& pair, const FrameObservations& previous,
                    const FrameObservations& current) const;
+  /// Pairs of the previous frame's background (`movable` false) or object keypoints, searched
+  /// around where a static point lands within background_radius_px or, `wide`,
+  /// object_search_radius_px; previous keypoints in `already` are not searched again.
   std::vector<Pair> matchPairs(const FrameObservations& previous, const FrameObservations& current,
-                               const SE3d& T_cur_prev, bool movable) const;
+                               const SE3d& T_cur_prev, bool movable, bool wide,
+                               const std::vector<Pair>& already) const;
   /// T_cur_prev refined on the background pairs with previous stereo depth (relative_motion.h).
   SE3d refinedMotion(const std::vector<Pair>& background, const FrameObservations& previous,
                      const FrameObservations& current, const SE3d& T_cur_prev) const;
   Thresholds backgroundThresholds(const std::vector<Pair>& pairs, const FrameObservations& previous,
                                   const FrameObservations& current, const SE3d& T_cur_prev) const;
+  /// The residual of a pair under its test and the threshold it is compared with [px].
+  std::optional<std::pair<double, double>> pairResidual(const Pair& pair,
+                                                        const FrameObservations& previous,
+                                                        const FrameObservations& current,
+                                                        const SE3d& T_cur_prev,
+                                                        const Thresholds& thresholds) const;
+  void testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
+                   const FrameObservations& previous, const FrameObservations& current,
+                   const SE3d& T_cur_prev, const Thresholds& thresholds,
+                   std::map<int, ObjectDecision>& objects) const;
+  /// Per image cell (row-major, geometric_cell_px): whether its background pairs move.
+  std::vector<char> movingBackgroundCells(const std::vector<Pair>& background,
+                                          const FrameObservations& previous,
+                                          const FrameObservations& current, const SE3d& T_cur_prev,
+                                          const Thresholds& thresholds,
+                                          MovingObjectReport& report) const;
+  std::size_t cellOf(const Eigen::Vector2d& pixel, int cols, int rows) const;
+  void dropKeypoints(const std::map<int, ObjectDecision>& objects,
+                     const std::vector<char>& moving_cells, const FrameObservations& current,
+                     MovingObjectReport& report) const;
   void testObject(const std::vector<Pair>& pairs, const FrameObservations& previous,
                   const FrameObservations& current, const SE3d& T_cur_prev,
                   const Thresholds& thresholds, std::uint64_t draw_seed,
