@@ -8,9 +8,10 @@
 
 namespace superdyna::tracking {
 
-static_assert(io::kInstanceClassBackground == features::kClassBackground &&
-                  io::kInstanceClassVehicle == features::kClassVehicle &&
-                  io::kInstanceClassPedestrian == features::kClassPedestrian,
+static_assert(sensors::kInstanceClassBackground == features::kClassBackground &&
+                  sensors::kInstanceClassVehicle == features::kClassVehicle &&
+                  sensors::kInstanceClassPedestrian == features::kClassPedestrian &&
+                  sensors::kInstanceClassOtherMovable == features::kClassOtherMovable,
               "instance-mask classes and keypoint classes must use the same ids");
 
 namespace {
@@ -43,7 +44,7 @@ void FrontEndOptions::validate() const {
   stereo.validate();
 }
 
-void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints) {
   if (instance_mask.empty()) return;
   for (features::Keypoint& k : keypoints) {

@@ -15,7 +15,7 @@ namespace {
 constexpr const char* kEuroc = "data/euroc/V1_01_easy_micro";
 
 TEST(LabelKeypoints, TakesInstanceAndClassFromTheMaskPixel) {
-  io::InstanceMasks masks;
+  sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(40, 60, CV_16UC1, cv::Scalar(0));
   masks.cam0(cv::Rect(10, 5, 10, 10)).setTo(3);  // columns 10..19, rows 5..14
   masks.class_of_instance = {{3, features::kClassPedestrian}};
@@ -52,7 +52,7 @@ TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
   SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
   io::FrameBundle bundle = eurocFrame(path);
   // A "vehicle" over the left half of cam0 only: its keypoints have background partners.
-  io::InstanceMasks masks;
+  sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));
   masks.cam0.colRange(0, masks.cam0.cols / 2).setTo(1);
   masks.cam1 = cv::Mat(bundle.image1.size(), CV_16UC1, cv::Scalar(0));

@@ -40,7 +40,7 @@ struct FrontEndOptions {
 
 /// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,
 /// clamped to the mask) and its class from `masks`; an empty mask leaves them untouched.
-void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints);
 
 class FrontEnd {
