@@ -48,6 +48,19 @@ cv::Scalar classColour(int class_id) {
   }
 }
 
+cv::Scalar pointColour(int class_id) {
+  switch (class_id) {
+    case sensors::kInstanceClassVehicle:
+      return {255, 255, 0};
+    case sensors::kInstanceClassPedestrian:
+      return {60, 60, 255};
+    case sensors::kInstanceClassOtherMovable:
+      return {255, 255, 255};
+    default:
+      return {0, 220, 0};
+  }
+}
+
 cv::Mat drawOverlay(const cv::Mat& image, const cv::Mat& ids, const sensors::InstanceMasks& masks,
                     const std::vector<LabelledPoint>& points) {
   cv::Mat canvas;
@@ -60,7 +73,7 @@ cv::Mat drawOverlay(const cv::Mat& image, const cv::Mat& ids, const sensors::Ins
   for (const LabelledPoint& p : points) {
     const cv::Point centre(cvRound(p.pixel.x), cvRound(p.pixel.y));
     cv::circle(canvas, centre, 3, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
-    cv::circle(canvas, centre, 2, classColour(p.class_id), cv::FILLED, cv::LINE_AA);
+    cv::circle(canvas, centre, 2, pointColour(p.class_id), cv::FILLED, cv::LINE_AA);
   }
   return canvas;
 }

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <filesystem>
+
 #include "superdyna/core/error.h"
 #include "superdyna/inference/model_files.h"
 #include "superdyna/semantics/yolo_decoder.h"
@@ -36,7 +38,17 @@ inference::OnnxModel loadModel(const YoloOptions& options) {
   options.validate();
   inference::OnnxModelOptions runtime;
   runtime.intra_op_threads = options.inference_threads;
-  return inference::OnnxModel(inference::findModel(options.model), yoloSignature(), runtime);
+  std::filesystem::path file;
+  try {
+    file = inference::findModel(options.model);
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) +
+                     "\nYOLOv8-seg models: export one with Ultralytics (yolo export "
+                     "model=yolov8n-seg.pt format=onnx), or use ../shared/models/"
+                     "yolov8n-seg-int8.onnx beside the checkout (semantics.yolo_model; README, "
+                     "'Instance segmentation').");
+  }
+  return inference::OnnxModel(file, yoloSignature(), runtime);
 }
 
 /// The model's input size: its fixed sides, or input_size for a dynamic model.

@@ -21,9 +21,9 @@ TEST(YoloSegmenter, AMissingModelSaysWhereItLooked) {
   const test::ScopedEnv env(inference::kModelDirVariable, dir.path().string());
   YoloOptions options;
   options.model = "no-such-yolo-seg.onnx";
-  test::expectError(
-      [&] { YoloSegmenter(options, Taxonomy{}); },
-      {"no-such-yolo-seg.onnx", "not found", (dir / "no-such-yolo-seg.onnx").string()});
+  test::expectError([&] { YoloSegmenter(options, Taxonomy{}); },
+                    {"no-such-yolo-seg.onnx", "not found", (dir / "no-such-yolo-seg.onnx").string(),
+                     "yolo export model=yolov8n-seg.pt format=onnx"});
 }
 
 TEST(YoloSegmenter, FindsTheParkedCarsOfTheKittiExcerpt) {

@@ -1,7 +1,7 @@
 #pragma once
 // A picture of the segmentation of one frame (the paper's Fig. 7b): the image in grey, each
 // instance mask blended in its class colour (instances of one class in shades of it, outlined),
-// and keypoints as dots coloured by their class.
+// and keypoints as dots coloured by their class (outlined in black).
 
 #include <opencv2/core.hpp>
 #include <vector>
@@ -15,8 +15,12 @@ struct LabelledPoint {
   int class_id = sensors::kInstanceClassBackground;
 };
 
-/// BGR colour of a class: background green, vehicle blue, pedestrian orange, other movable violet.
+/// BGR colour of a class's masks: vehicle blue, pedestrian orange, other movable violet (and
+/// background green).
 cv::Scalar classColour(int class_id);
+/// BGR colour of a class's keypoints, bright against the masks: background green, vehicle cyan,
+/// pedestrian red, other movable white.
+cv::Scalar pointColour(int class_id);
 
 /// The overlay (CV_8UC3) of `image` (CV_8UC1 or BGR) with the instance ids `ids` (CV_16UC1, same
 /// size, may be empty), their classes from `masks`, and the keypoints.
