@@ -163,10 +163,18 @@ void SegmenterOptions::validate() const {
     throw OptionError("semantics.dataset_format",
                       fmt::format("expected masks or color, got '{}'", dataset_format));
   }
+  if (right_labels != "auto" && right_labels != "segment" && right_labels != "left") {
+    throw OptionError("semantics.right_labels",
+                      fmt::format("expected auto, segment or left, got '{}'", right_labels));
+  }
   if (mask_dilate < 0) throw OptionError("semantics.mask_dilate", "must be >= 0");
   if (mask_erode < 0) throw OptionError("semantics.mask_erode", "must be >= 0");
   yolo.validate();
   taxonomy.validate();
+}
+
+bool SegmenterOptions::segmentsRightImage(const Segmenter& backend) const {
+  return right_labels == "segment" || (right_labels == "auto" && backend.idsNameObjects());
 }
 
 std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,

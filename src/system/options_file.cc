@@ -253,6 +253,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"dataset_format", &s.dataset_format},
         {"color_table", &s.color_table},
         {"movable_ids", &s.movable_ids},
+        {"right_labels", &s.right_labels},
         {"mask_dilate", &s.mask_dilate},
         {"mask_erode", &s.mask_erode},
         {"yolo_model", &s.yolo.model},

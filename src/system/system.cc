@@ -131,7 +131,8 @@ sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {
   const auto start = Clock::now();
   const semantics::Segmentation left = segmenter_->segment(bundle.image0, bundle.t_ns, 0);
   std::optional<semantics::Segmentation> right;
-  if (!bundle.image1.empty() && front_end_.isStereo()) {
+  if (!bundle.image1.empty() && front_end_.isStereo() &&
+      options_.semantics.segmentsRightImage(*segmenter_)) {
     right = segmenter_->segment(bundle.image1, bundle.t_ns, 1);
   }
   segment_ms_ += 1e3 * secondsSince(start);

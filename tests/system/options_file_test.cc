@@ -152,6 +152,7 @@ semantics:
   dataset_format: color
   color_table: "rgb_ids.txt"
   movable_ids: "vehicle_ids_city_day.txt"
+  right_labels: left
   mask_dilate: 2
   mask_erode: 1
   yolo_model: "yolov8n-seg.onnx"
@@ -196,7 +197,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 137u);  // every key of the ten sections
+  EXPECT_EQ(written.size(), 138u);  // every key of the ten sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -109,6 +109,14 @@ struct SegmenterOptions {
   /// Colour backend: the movable objects, "id, name" rows (VIODE's vehicle_ids_<scene>.txt; every
   /// id listed is a vehicle); "" = the classes of mav0/instances.csv. Other ids are background.
   std::string movable_ids;
+  /// Which right keypoints get labels: "segment" (the right image is segmented too), "left" (only
+  /// the left image is; stereo matching then ignores classes and a stereo point has its left
+  /// keypoint's label) or "auto": "segment" for backends whose ids name objects (dataset masks,
+  /// exact and cheap), "left" for networks (half the cost; a network's left and right masks
+  /// disagree at their borders, which refused 4.6 % of the stereo matches on a simulated street).
+  std::string right_labels = "auto";
+  /// Whether the right image is segmented by `backend` under these options.
+  bool segmentsRightImage(const Segmenter& backend) const;
   /// Iterations of a 3x3 square dilation / erosion of every instance mask (mask_perturbation.h).
   int mask_dilate = 0;
   int mask_erode = 0;
