@@ -116,8 +116,9 @@ using FrontEndCallback = std::function<void(const io::FrameBundle&, const tracki
 
 class System {
  public:
-  /// With a segmenter (semantics::makeSegmenter(options.semantics, dataset)), every frame's
-  /// images are segmented and its keypoints labelled with those masks instead of the bundle's.
+  /// With a segmenter (semantics::makeSegmenter(options.semantics, dataset)), every frame's left
+  /// image (and the right one, SegmenterOptions::right_labels) is segmented and its keypoints
+  /// labelled with those masks instead of the bundle's.
   System(const SystemOptions& options, const io::CameraCalibration& cam0,
          const std::optional<io::CameraCalibration>& cam1,
          const std::optional<io::ImuCalibration>& imu,
