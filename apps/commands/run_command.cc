@@ -318,7 +318,7 @@ class RunCommand : public Command {
     }
     printTimings(slam.options(), t);
     if (segmentation != "none") {
-      fmt::print("segmentation per frame (mean ms, both images, in the front end): {:.2f}\n",
+      fmt::print("segmentation per frame (mean ms, in the front end): {:.2f}\n",
                  t.meanMs(t.segment_ms));
     }
     printMatchCounts(slam);
