@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
 
@@ -15,6 +16,7 @@
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
 #include "superdyna/system/dynamic_log.h"
+#include "superdyna/semantics/overlay.h"
 #include "superdyna/system/frame_log.h"
 #include "superdyna/system/system.h"
 
@@ -61,6 +63,32 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       t.framesPerSecond(), t.wall_s, busy(t.busy.front_end_ms), busy(t.busy.extraction_helper_ms),
       busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
 }
+
+/// Writes every `every`-th frame's overlay (image, masks, keypoints by class) into `dir`.
+class OverlayWriter {
+ public:
+  OverlayWriter(fs::path dir, int every) : dir_(std::move(dir)), every_(every) {
+    fs::create_directories(dir_);
+  }
+
+  void write(const io::FrameBundle& bundle, const tracking::Frame& frame) const {
+    if (bundle.index % static_cast<std::size_t>(every_) != 0) return;
+    std::vector<semantics::LabelledPoint> points;
+    for (const features::Keypoint& k : frame.features.keypoints)
+      points.push_back({{k.pixel.x(), k.pixel.y()}, k.class_id});
+    const sensors::InstanceMasks none;
+    const sensors::InstanceMasks& masks = bundle.masks ? *bundle.masks : none;
+    const fs::path file = dir_ / fmt::format("overlay_{:06d}.png", bundle.index);
+    if (!cv::imwrite(file.string(),
+                     semantics::drawOverlay(bundle.image0, masks.cam0, masks, points))) {
+      throw InputError(InputLocation{file}, "cannot write the overlay image");
+    }
+  }
+
+ private:
+  fs::path dir_;
+  int every_;
+};
 
 void printMatchCounts(const system::System& slam) {
   const system::MatchCounts& m = slam.timings().matches;
@@ -159,14 +187,26 @@ class RunCommand : public Command {
                      "Moving-object handling (overrides dynamic.mode): off (robust kernels "
                      "only), semantic (drop every movable object) or semantic-geometric (drop "
                      "the objects the IMU-predicted motion test finds moving); needs labelled "
-                     "keypoints (--instance-masks)")
+                     "keypoints (--instance-masks or --segmenter)")
         ->check(CLI::IsMember({"off", "semantic", "semantic-geometric"}));
     sub_->add_option("--dynamic-log", dynamic_log_,
                      "Also write a CSV row per movable object per frame: "
-                     "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision");
+                     "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision,"
+                     "keypoints,dropped");
+    sub_->add_option("--segmenter", segmenter_,
+                     "Instance segmentation labelling the keypoints: none | dataset | yolo "
+                     "(overrides semantics.segmenter)")
+        ->check(CLI::IsMember({"none", "dataset", "yolo"}));
     sub_->add_flag("--instance-masks", instance_masks_,
-                   "Label keypoints with the sequence's instance masks (simulated sequences: "
+                   "Short for --segmenter dataset with semantics.dataset_format masks: label "
+                   "keypoints with the sequence's instance masks (simulated sequences: "
                    "mav0/camN/mask/ and instances.csv)");
+    sub_->add_option("--overlay", overlay_dir_,
+                     "Write overlay PNGs (left image, instance masks, keypoints coloured by "
+                     "class) into this folder");
+    sub_->add_option("--overlay-every", overlay_every_, "Overlay every N-th frame")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
     sub_->add_flag("--deterministic", deterministic_,
                    "Sequential, single-threaded run: bit-identical output for the same input "
                    "(default: concurrent front end, tracking and local mapping threads)");
@@ -232,11 +272,21 @@ class RunCommand : public Command {
       }
       options.front_end.features.model = *model_;
     }
+    if (segmenter_) options.semantics.segmenter = *segmenter_;
+    if (instance_masks_) {
+      if (segmenter_ && *segmenter_ != "dataset") {
+        throw OptionError("--instance-masks",
+                          "is --segmenter dataset; it contradicts --segmenter " + *segmenter_);
+      }
+      options.semantics.segmenter = "dataset";
+      options.semantics.dataset_format = "masks";
+    }
     if (dynamic_) options.tracker.dynamic.mode = dynamic::parseDynamicMode(*dynamic_, "--dynamic");
-    if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff && !instance_masks_) {
+    if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff &&
+        options.semantics.segmenter == "none") {
       throw OptionError(dynamic_ ? "--dynamic" : "dynamic.mode",
-                        fmt::format("mode {} needs keypoints labelled by instance masks: add "
-                                    "--instance-masks",
+                        fmt::format("mode {} needs keypoints labelled by a segmenter: add "
+                                    "--instance-masks or --segmenter",
                                     dynamic::toString(options.tracker.dynamic.mode)));
     }
     options.deterministic = deterministic_;
@@ -246,14 +296,27 @@ class RunCommand : public Command {
     source_options.stereo = !system::isMonocular(options.mode);
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
-    source_options.instance_masks = instance_masks_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
-    system::System slam(options, source->camera0(), source->camera1(), source->imu());
+    std::unique_ptr<semantics::Segmenter> segmenter =
+        semantics::makeSegmenter(options.semantics, path_);
+    const std::string segmentation = segmenter ? segmenter->description() : "none";
+    system::System slam(options, source->camera0(), source->camera1(), source->imu(),
+                        std::move(segmenter));
+    std::optional<OverlayWriter> overlay;
+    if (overlay_dir_) {
+      refuseOutputInsideDataset(*overlay_dir_, "--overlay");
+      overlay.emplace(*overlay_dir_, overlay_every_);
+      slam.setFrontEndCallback(
+          [&overlay](const io::FrameBundle& bundle, const tracking::Frame& frame) {
+            overlay->write(bundle, frame);
+          });
+    }
 
     fmt::print("running {} SLAM with {} features ({}) on {} ({} frames)\n",
                system::toString(options.mode), features::toString(options.front_end.features.type),
                options.deterministic ? "deterministic" : "concurrent", path_.string(),
                source->size());
+    fmt::print("segmentation: {}\n", segmentation);
     const std::string effective = system::formatSystemOptions(slam.options());
     fmt::print("effective options (written to {}):\n{}", config_path.string(), effective);
     system::writeSystemOptions(config_path, slam.options());
@@ -283,6 +346,10 @@ class RunCommand : public Command {
                  slam.initializingFrames());
     }
     printTimings(slam.options(), t);
+    if (segmentation != "none") {
+      fmt::print("segmentation per frame (mean ms, in the front end): {:.2f}\n",
+                 t.meanMs(t.segment_ms));
+    }
     printMatchCounts(slam);
     printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
     // Visual-only monocular trajectories have no metric scale.
@@ -307,7 +374,10 @@ class RunCommand : public Command {
   std::optional<fs::path> config_;
   std::optional<std::string> features_;
   std::optional<std::string> model_;
+  std::optional<std::string> segmenter_;
   bool instance_masks_ = false;
+  std::optional<fs::path> overlay_dir_;
+  int overlay_every_ = 10;
   bool deterministic_ = false;
 };
 

@@ -132,7 +132,7 @@ class EurocSource : public FrameListSource {
   }
 
   void addMasks(const StereoFrameRef& frame, FrameBundle* bundle) const {
-    InstanceMasks masks;
+    sensors::InstanceMasks masks;
     masks.cam0 = dataset_.loadInstanceMask(frame.cam0, bundle->image0.size());
     if (!bundle->image1.empty()) {
       masks.cam1 = dataset_.loadInstanceMask(frame.cam1, bundle->image1.size());

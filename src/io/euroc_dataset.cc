@@ -243,11 +243,13 @@ GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
 }
 
 int instanceClassId(const std::string& name, const InputLocation& where) {
-  if (name == "background") return kInstanceClassBackground;
-  if (name == "vehicle") return kInstanceClassVehicle;
-  if (name == "pedestrian") return kInstanceClassPedestrian;
-  throw InputError(where,
-                   fmt::format("unknown class '{}' (background | vehicle | pedestrian)", name));
+  for (const int id : {sensors::kInstanceClassBackground, sensors::kInstanceClassVehicle,
+                       sensors::kInstanceClassPedestrian, sensors::kInstanceClassOtherMovable}) {
+    if (name == sensors::instanceClassName(id)) return id;
+  }
+  throw InputError(
+      where,
+      fmt::format("unknown class '{}' (background | vehicle | pedestrian | other_movable)", name));
 }
 
 /// mav0/instances.csv: "id,class,..." per instance (the simulator adds moving and lifetime).

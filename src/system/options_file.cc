@@ -133,6 +133,7 @@ std::string format(Field field) {
 std::vector<Section> optionTable(SystemOptions& o) {
   auto& t = o.tracker;
   auto& f = o.front_end;
+  auto& s = o.semantics;
   return {
       {"features",
        {{"type", &f.features.type},
@@ -289,6 +290,25 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"inertial_window_keyframes", &o.mapping.inertial_window_keyframes},
         {"inertial_fixed_covisible", &o.mapping.inertial_fixed_covisible},
         {"inertial_iterations", &o.mapping.inertial_iterations}}},
+      {"semantics",
+       {{"segmenter", &s.segmenter},
+        {"dataset_format", &s.dataset_format},
+        {"color_table", &s.color_table},
+        {"movable_ids", &s.movable_ids},
+        {"right_labels", &s.right_labels},
+        {"mask_dilate", &s.mask_dilate},
+        {"mask_erode", &s.mask_erode},
+        {"yolo_model", &s.yolo.model},
+        {"yolo_input_size", &s.yolo.input_size},
+        {"yolo_score_threshold", &s.yolo.score_threshold},
+        {"yolo_nms_iou", &s.yolo.nms_iou},
+        {"yolo_mask_threshold", &s.yolo.mask_threshold},
+        {"yolo_min_area_px", &s.yolo.min_area_px},
+        {"yolo_max_detections", &s.yolo.max_detections},
+        {"yolo_inference_threads", &s.yolo.inference_threads},
+        {"pedestrian_labels", &s.taxonomy.pedestrian},
+        {"vehicle_labels", &s.taxonomy.vehicle},
+        {"other_movable_labels", &s.taxonomy.other_movable}}},
       {"pipeline", {{"frame_queue", &o.frame_queue}, {"mapping_queue", &o.mapping_queue}}},
   };
 }

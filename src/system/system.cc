@@ -46,6 +46,7 @@ bool isMonocular(SensorMode mode) {
 
 void SystemOptions::validate() const {
   front_end.validate();
+  semantics.validate();
   tracker.validate();
   mapping.validate();
   if (frame_queue < 1) throw OptionError("frame_queue", "must be >= 1");
@@ -85,9 +86,11 @@ SystemOptions checkedOptions(SystemOptions options) {
 
 System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
                const std::optional<io::CameraCalibration>& cam1,
-               const std::optional<io::ImuCalibration>& imu)
+               const std::optional<io::ImuCalibration>& imu,
+               std::unique_ptr<semantics::Segmenter> segmenter)
     : options_(checkedOptions(options)),
       front_end_(options_.front_end, cam0, isMonocular(options_.mode) ? std::nullopt : cam1),
+      segmenter_(std::move(segmenter)),
       tracker_(
           options_.tracker,
           tracking::PyramidInfo{front_end_.pyramid().scale_factor, front_end_.pyramid().levels},
@@ -124,10 +127,32 @@ void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
   }
 }
 
+sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {
+  const auto start = Clock::now();
+  const semantics::Segmentation left = segmenter_->segment(bundle.image0, bundle.t_ns, 0);
+  std::optional<semantics::Segmentation> right;
+  if (!bundle.image1.empty() && front_end_.isStereo() &&
+      options_.semantics.segmentsRightImage(*segmenter_)) {
+    right = segmenter_->segment(bundle.image1, bundle.t_ns, 1);
+  }
+  segment_ms_ += 1e3 * secondsSince(start);
+  return semantics::toInstanceMasks(left, right, segmenter_->idsNameObjects());
+}
+
+tracking::Frame System::buildFrame(const io::FrameBundle& bundle) {
+  if (!segmenter_ && !front_end_callback_) return front_end_.build(bundle);
+  io::FrameBundle labelled = bundle;
+  if (segmenter_) labelled.masks = segment(bundle);
+  tracking::Frame frame = front_end_.build(labelled);
+  if (front_end_callback_) front_end_callback_(labelled, frame);
+  return frame;
+}
+
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
   const auto start = Clock::now();
   const double cpu_start = threadCpuMs();
-  const tracking::Frame frame = front_end_.build(bundle);
+  const tracking::Frame frame = buildFrame(bundle);
+  timings_.segment_ms = segment_ms_;
   timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
   timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
   const tracking::TrackingResult result = track(frame);
@@ -195,7 +220,7 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
       while (true) {
         const std::optional<io::FrameBundle> bundle = source.next();
         if (!bundle) break;
-        if (!frames.push(front_end_.build(*bundle))) break;  // tracking stopped early
+        if (!frames.push(buildFrame(*bundle))) break;  // tracking stopped early
       }
     } catch (...) {
       front_end_error = std::current_exception();
@@ -208,6 +233,7 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
     frames.close();
     front_end.join();
     timings_.busy.front_end_ms += front_end_ms;
+    timings_.segment_ms = segment_ms_;
     timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
     timings_.wall_s += secondsSince(start);
   };

@@ -8,9 +8,10 @@
 
 namespace superdyna::tracking {
 
-static_assert(io::kInstanceClassBackground == features::kClassBackground &&
-                  io::kInstanceClassVehicle == features::kClassVehicle &&
-                  io::kInstanceClassPedestrian == features::kClassPedestrian,
+static_assert(sensors::kInstanceClassBackground == features::kClassBackground &&
+                  sensors::kInstanceClassVehicle == features::kClassVehicle &&
+                  sensors::kInstanceClassPedestrian == features::kClassPedestrian &&
+                  sensors::kInstanceClassOtherMovable == features::kClassOtherMovable,
               "instance-mask classes and keypoint classes must use the same ids");
 
 namespace {
@@ -66,7 +67,7 @@ void FrontEndOptions::validate() const {
   stereo.validate();
 }
 
-void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints) {
   if (instance_mask.empty()) return;
   for (features::Keypoint& k : keypoints) {
@@ -87,6 +88,9 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& 
   if (cam1) {
     right_extractor_ = features::makeExtractor(options.features);
     stereo_matcher_.emplace(cam0, *cam1, options.stereo);
+    features::StereoMatchOptions label_free = options.stereo;
+    label_free.same_class_only = false;
+    label_free_matcher_.emplace(cam0, *cam1, label_free);
     if (options.parallel_extraction) helper_ = std::make_unique<TaskThread>();
   }
 }
@@ -140,18 +144,22 @@ features::FeatureSet FrontEnd::extractRight(const io::FrameBundle& bundle) {
 
 void FrontEnd::matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
                            Frame& frame) const {
+  // Right keypoints are labelled only when the right image has a mask of its own.
+  const bool right_labelled = !bundle.masks || !bundle.masks->cam1.empty();
+  const features::StereoMatcher& matcher = right_labelled ? *stereo_matcher_ : *label_free_matcher_;
   const std::vector<features::StereoMatch> matches =
-      stereo_matcher_->options().refine_on_images
-          ? stereo_matcher_->match(frame.features, right, bundle.image0, bundle.image1,
-                                   pyramid_.scale_factor)
-          : stereo_matcher_->match(frame.features, right);
+      matcher.options().refine_on_images ? matcher.match(frame.features, right, bundle.image0,
+                                                         bundle.image1, pyramid_.scale_factor)
+                                         : matcher.match(frame.features, right);
   for (const features::StereoMatch& m : matches) {
     const auto i = static_cast<std::size_t>(m.left);
     if (!frame.normalized[i].allFinite()) continue;
     const features::Keypoint& partner = right.keypoints[static_cast<std::size_t>(m.right)];
     const Eigen::Vector2d r = normalizedOf(stereo_matcher_->camera1(), m.right_pixel);
     if (!r.allFinite()) continue;
-    if (partner.class_id != frame.features.keypoints[i].class_id) ++frame.cross_class_stereo;
+    if (right_labelled && partner.class_id != frame.features.keypoints[i].class_id) {
+      ++frame.cross_class_stereo;
+    }
     frame.depth_m[i] = m.depth_m;
     frame.p_c0[i] = m.p_c0;
     frame.right_normalized[i] = r;

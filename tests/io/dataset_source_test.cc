@@ -130,15 +130,15 @@ TEST(DatasetSourceTest, EurocServesInstanceMasksWhenAsked) {
   std::size_t frames = 0;
   while (const auto bundle = source->next()) {
     ASSERT_TRUE(bundle->masks);
-    const InstanceMasks& masks = *bundle->masks;
+    const sensors::InstanceMasks& masks = *bundle->masks;
     ASSERT_EQ(masks.cam0.type(), CV_16UC1);
     ASSERT_EQ(masks.cam1.size(), cv::Size(752, 480));
     EXPECT_EQ(masks.cam0.at<std::uint16_t>(60, 110), 1);
     EXPECT_EQ(masks.cam1.at<std::uint16_t>(350, 420), 2);
     EXPECT_EQ(masks.cam0.at<std::uint16_t>(10, 10), 0);
-    EXPECT_EQ(masks.classOf(1), kInstanceClassVehicle);
-    EXPECT_EQ(masks.classOf(2), kInstanceClassPedestrian);
-    EXPECT_EQ(masks.classOf(0), kInstanceClassBackground);
+    EXPECT_EQ(masks.classOf(1), sensors::kInstanceClassVehicle);
+    EXPECT_EQ(masks.classOf(2), sensors::kInstanceClassPedestrian);
+    EXPECT_EQ(masks.classOf(0), sensors::kInstanceClassBackground);
     ++frames;
   }
   EXPECT_EQ(frames, 3u);

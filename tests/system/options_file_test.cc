@@ -175,6 +175,25 @@ mapping:
   inertial_window_keyframes: 8
   inertial_fixed_covisible: 4
   inertial_iterations: 6
+semantics:
+  segmenter: yolo
+  dataset_format: color
+  color_table: "rgb_ids.txt"
+  movable_ids: "vehicle_ids_city_day.txt"
+  right_labels: left
+  mask_dilate: 2
+  mask_erode: 1
+  yolo_model: "yolov8n-seg.onnx"
+  yolo_input_size: 640
+  yolo_score_threshold: 0.3
+  yolo_nms_iou: 0.6
+  yolo_mask_threshold: 0.4
+  yolo_min_area_px: 50
+  yolo_max_detections: 30
+  yolo_inference_threads: 1
+  pedestrian_labels: "person,rider"
+  vehicle_labels: "car,truck"
+  other_movable_labels: "dog"
 pipeline:
   frame_queue: 3
   mapping_queue: 8
@@ -206,7 +225,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 147u);  // every key of the ten sections
+  EXPECT_EQ(written.size(), 165u);  // every key of the eleven sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -15,7 +15,7 @@ namespace {
 constexpr const char* kEuroc = "data/euroc/V1_01_easy_micro";
 
 TEST(LabelKeypoints, TakesInstanceAndClassFromTheMaskPixel) {
-  io::InstanceMasks masks;
+  sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(40, 60, CV_16UC1, cv::Scalar(0));
   masks.cam0(cv::Rect(10, 5, 10, 10)).setTo(3);  // columns 10..19, rows 5..14
   masks.class_of_instance = {{3, features::kClassPedestrian}};
@@ -52,7 +52,7 @@ TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
   SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
   io::FrameBundle bundle = eurocFrame(path);
   // A "vehicle" over the left half of cam0 only: its keypoints have background partners.
-  io::InstanceMasks masks;
+  sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));
   masks.cam0.colRange(0, masks.cam0.cols / 2).setTo(1);
   masks.cam1 = cv::Mat(bundle.image1.size(), CV_16UC1, cv::Scalar(0));
@@ -78,6 +78,39 @@ TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
   EXPECT_EQ(class_wise.cross_class_stereo, 0);
   EXPECT_GT(blind.cross_class_stereo, 100);
   EXPECT_GT(class_wise.numStereo(), 100);
+}
+
+TEST(FrontEnd, LeftOnlyMasksLabelStereoPointsFromTheLeftKeypoint) {
+  SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
+  io::FrameBundle bundle = eurocFrame(path);
+  // A segmenter run on the left image only: a "vehicle" over its left half, no right mask.
+  sensors::InstanceMasks masks;
+  masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));
+  masks.cam0.colRange(0, masks.cam0.cols / 2).setTo(1);
+  masks.class_of_instance = {{1, features::kClassVehicle}};
+  bundle.masks = masks;
+
+  FrontEndOptions options;
+  options.stereo.same_class_only = false;
+  const Frame blind = eurocFrontEnd(path, options).build(bundle);
+  options.stereo.same_class_only = true;
+  const Frame left_only = eurocFrontEnd(path, options).build(bundle);
+  // Class-wise matching cannot use right labels that do not exist: the stereo search ignores
+  // classes and every stereo point keeps its left keypoint's label.
+  int stereo_on_vehicle = 0;
+  ASSERT_EQ(blind.size(), left_only.size());
+  for (std::size_t i = 0; i < left_only.size(); ++i) {
+    EXPECT_EQ(left_only.hasStereo(i), blind.hasStereo(i)) << i;
+    if (left_only.hasStereo(i) &&
+        left_only.features.keypoints[i].class_id == features::kClassVehicle) {
+      ++stereo_on_vehicle;
+    }
+  }
+  std::cout << "left-only masks: " << stereo_on_vehicle << " stereo points on the vehicle of "
+            << left_only.numStereo() << "\n";
+  EXPECT_GT(stereo_on_vehicle, 100);
+  EXPECT_EQ(left_only.numStereo(), blind.numStereo());
+  EXPECT_EQ(left_only.cross_class_stereo, 0);
 }
 
 TEST(FrontEnd, XFeatFramesCarryFloatDescriptorsAndStereoDepth) {

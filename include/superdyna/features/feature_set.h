@@ -18,6 +18,7 @@ namespace superdyna::features {
 inline constexpr int kClassBackground = 0;
 inline constexpr int kClassVehicle = 1;
 inline constexpr int kClassPedestrian = 2;
+inline constexpr int kClassOtherMovable = 3;  ///< Animals and other movable things.
 
 /// One detected keypoint, in level-0 (full resolution) image coordinates.
 struct Keypoint {
@@ -26,8 +27,8 @@ struct Keypoint {
   int octave = 0;         ///< Pyramid level of detection (0 = full resolution).
   float response = 0.0f;  ///< Detector score, larger is stronger (ORB: FAST score).
   float size = 0.0f;      ///< Diameter of the described patch in level-0 pixels [px].
-  int class_id = 0;       ///< kClassBackground / kClassVehicle / kClassPedestrian.
-  int instance_id = 0;    ///< Object instance the keypoint lies on; 0 = static background.
+  int class_id = 0;  ///< kClassBackground / kClassVehicle / kClassPedestrian / kClassOtherMovable.
+  int instance_id = 0;  ///< Object instance the keypoint lies on; 0 = static background.
 };
 
 /// How descriptors are stored and compared.

@@ -6,7 +6,6 @@
 
 #include <cstddef>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -15,22 +14,9 @@
 
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/euroc_dataset.h"
+#include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::io {
-
-/// Ground-truth instance segmentation of one frame (simulated sequences).
-struct InstanceMasks {
-  cv::Mat cam0;  ///< CV_16UC1 instance id per pixel of image0; 0 = static background.
-  cv::Mat cam1;  ///< The same for image1; empty in mono.
-  /// Instance id -> semantic class (kInstanceClass*, equal to features::kClass*).
-  std::map<int, int> class_of_instance;
-
-  /// Class of an instance id; background (0) for id 0 and ids not listed.
-  int classOf(int instance_id) const {
-    const auto it = class_of_instance.find(instance_id);
-    return it == class_of_instance.end() ? kInstanceClassBackground : it->second;
-  }
-};
 
 struct FrameBundle {
   std::size_t index = 0;  ///< 0-based position in the served sequence.
@@ -44,7 +30,7 @@ struct FrameBundle {
   std::vector<ImuSample> imu;
   std::optional<SE3d> T_w_b_gt;  ///< Ground-truth body pose at t_ns (within 1 ms), if any.
   /// Instance masks, when DatasetSourceOptions::instance_masks asked for them.
-  std::optional<InstanceMasks> masks;
+  std::optional<sensors::InstanceMasks> masks;
 };
 
 enum class DatasetKind { kEuroc, kKitti };

@@ -32,6 +32,7 @@
 #include "superdyna/core/time.h"
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/calibration.h"
+#include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::io {
 
@@ -41,12 +42,6 @@ struct ImuSample {
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   ///< Angular velocity, rad/s.
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();  ///< Specific force, m/s^2.
 };
-
-/// Semantic classes of instances.csv (rows "id,class,..."): class names and the ids they map to;
-/// the ids equal features::kClassBackground / kClassVehicle / kClassPedestrian.
-inline constexpr int kInstanceClassBackground = 0;  ///< "background"
-inline constexpr int kInstanceClassVehicle = 1;     ///< "vehicle"
-inline constexpr int kInstanceClassPedestrian = 2;  ///< "pedestrian"
 
 /// One ground-truth state of the body frame.
 struct GroundTruthState {
@@ -70,7 +65,8 @@ class EurocDataset {
   bool hasGroundTruth() const { return !ground_truth_.empty(); }
   /// Whether the sequence has per-camera instance masks and mav0/instances.csv (simulator).
   bool hasInstanceMasks() const { return has_instance_masks_; }
-  /// Instance id -> semantic class (kInstanceClass*) from mav0/instances.csv; empty without it.
+  /// Instance id -> semantic class (sensors::kInstanceClass*) from mav0/instances.csv; empty
+  /// without it.
   const std::map<int, int>& instanceClasses() const { return instance_classes_; }
   /// The instance mask of an image of this dataset (`image` a path from monoFrames() or
   /// stereoFrames()): mav0/camN/mask/<same file name>, CV_16UC1 of the image's size. Throws

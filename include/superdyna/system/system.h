@@ -28,6 +28,7 @@
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/mapping/local_mapper.h"
+#include "superdyna/semantics/segmenter.h"
 #include "superdyna/system/mapping_worker.h"
 #include "superdyna/tracking/front_end.h"
 #include "superdyna/tracking/tracker.h"
@@ -48,6 +49,8 @@ struct SystemOptions {
   tracking::FrontEndOptions front_end;
   tracking::TrackerOptions tracker;
   mapping::LocalMapperOptions mapping;
+  /// Instance segmentation (section `semantics`); the System runs the segmenter it is given.
+  semantics::SegmenterOptions semantics;
   bool deterministic = true;  ///< Sequential pipeline; false = concurrent (see above).
   int frame_queue = 2;        ///< Concurrent: frames the front end may build ahead, >= 1.
   int mapping_queue = 16;     ///< Concurrent: mapping jobs (2 per keyframe) that may wait, >= 1.
@@ -61,8 +64,8 @@ struct SystemOptions {
 void applyClassWiseMatching(SystemOptions& options);
 
 /// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
-/// `tracker`, `dynamic`, `mono_init`, `mapping`, `pipeline`) over `defaults`; an unknown section or
-/// key is an InputError naming file and key.
+/// `tracker`, `dynamic`, `mono_init`, `mapping`, `semantics`, `pipeline`) over `defaults`; an
+/// unknown section or key is an InputError naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// The options as an options file that loadSystemOptions reads back to the same values: every key
@@ -99,7 +102,8 @@ struct TimingSummary {
   /// Per stage. local_ba_ms: keyframe insertion and local mapping, wherever they ran.
   tracking::StageTimes total;
   ThreadBusyTimes busy;
-  double wall_s = 0.0;  ///< Wall-clock time of process() / run() calls, to the end of mapping.
+  double wall_s = 0.0;      ///< Wall-clock time of process() / run() calls, to the end of mapping.
+  double segment_ms = 0.0;  ///< Segmentation (both images) in the front end, summed.
   MatchCounts matches;
   double meanMs(double total_ms) const { return frames > 0 ? total_ms / frames : 0.0; }
   double framesPerSecond() const { return wall_s > 0.0 ? frames / wall_s : 0.0; }
@@ -107,12 +111,19 @@ struct TimingSummary {
 
 /// Called in the tracking thread after each frame.
 using FrameCallback = std::function<void(const tracking::TrackingResult&)>;
+/// Called in the front-end thread after each frame is built: the bundle with the masks its
+/// keypoints were labelled with, and the frame.
+using FrontEndCallback = std::function<void(const io::FrameBundle&, const tracking::Frame&)>;
 
 class System {
  public:
+  /// With a segmenter (semantics::makeSegmenter(options.semantics, dataset)), every frame's left
+  /// image (and the right one, SegmenterOptions::right_labels) is segmented and its keypoints
+  /// labelled with those masks instead of the bundle's.
   System(const SystemOptions& options, const io::CameraCalibration& cam0,
          const std::optional<io::CameraCalibration>& cam1,
-         const std::optional<io::ImuCalibration>& imu);
+         const std::optional<io::ImuCalibration>& imu,
+         std::unique_ptr<semantics::Segmenter> segmenter = nullptr);
 
   System(const System&) = delete;
   System& operator=(const System&) = delete;
@@ -131,6 +142,9 @@ class System {
   /// Waits for local mapping to process every queued keyframe and stops the mapping thread;
   /// rethrows its error, if any. Idempotent; processing may continue afterwards.
   void finish();
+
+  /// Called for every frame the front end builds (set before process() / run()).
+  void setFrontEndCallback(FrontEndCallback callback) { front_end_callback_ = std::move(callback); }
 
   const SystemOptions& options() const { return options_; }
   const Trajectory& trajectory() const { return trajectory_; }
@@ -156,6 +170,11 @@ class System {
 
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);
+  /// The front end's frame of a bundle, its keypoints labelled with the segmenter's masks when
+  /// there is one. Runs in the front-end thread.
+  tracking::Frame buildFrame(const io::FrameBundle& bundle);
+  /// The segmenter's masks of both images of a bundle.
+  sensors::InstanceMasks segment(const io::FrameBundle& bundle);
   /// Appends the frame to the trajectory (initialising mono frames are counted, not recorded) and
   /// applies a change of the world of the current map to the poses recorded on it.
   void record(TimeNs t_ns, const tracking::TrackingResult& result);
@@ -170,6 +189,9 @@ class System {
 
   SystemOptions options_;
   tracking::FrontEnd front_end_;
+  std::unique_ptr<semantics::Segmenter> segmenter_;
+  FrontEndCallback front_end_callback_;
+  double segment_ms_ = 0.0;  ///< Front-end thread's segmentation time, copied to timings_.
   tracking::Tracker tracker_;
   /// Declared after tracker_ (destroyed first): its jobs use the tracker.
   std::unique_ptr<MappingWorker> mapping_;

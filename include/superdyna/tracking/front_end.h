@@ -7,8 +7,10 @@
 // The extractor is chosen by FeatureOptions (ORB, XFeat, SuperPoint); the stereo matcher follows
 // its descriptor type. When the bundle carries instance masks, every keypoint is labelled with the
 // instance under it and that instance's class (no mask: background, 0); with class-wise matching
-// the stereo matcher pairs only keypoints of one class. Keypoints on objects are kept: removing
-// dynamic ones is a later stage's decision.
+// the stereo matcher pairs only keypoints of one class. When the masks cover the left image only
+// (a segmenter run on the left image), stereo matching ignores classes and a right partner counts
+// as having its left keypoint's label. Keypoints on objects are kept: removing dynamic ones is a
+// later stage's decision.
 //
 // With parallel_extraction the right image is extracted on a helper thread while the calling
 // thread extracts the left one (each image has its own extractor, so the features are the same
@@ -40,7 +42,7 @@ struct FrontEndOptions {
 
 /// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,
 /// clamped to the mask) and its class from `masks`; an empty mask leaves them untouched.
-void labelKeypoints(const cv::Mat& instance_mask, const io::InstanceMasks& masks,
+void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints);
 
 class FrontEnd {
@@ -70,6 +72,8 @@ class FrontEnd {
   features::PyramidLayout pyramid_;
   std::unique_ptr<features::FeatureExtractor> left_extractor_, right_extractor_;
   std::optional<features::StereoMatcher> stereo_matcher_;
+  /// The same without classes, for frames whose right image has no mask.
+  std::optional<features::StereoMatcher> label_free_matcher_;
   std::unique_ptr<TaskThread> helper_;  ///< Extracts the right image (parallel_extraction).
 };
 
