@@ -6,8 +6,11 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "commands/output_files.h"
@@ -15,8 +18,8 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
-#include "superdyna/system/dynamic_log.h"
 #include "superdyna/semantics/overlay.h"
+#include "superdyna/system/dynamic_log.h"
 #include "superdyna/system/frame_log.h"
 #include "superdyna/system/system.h"
 
@@ -64,30 +67,76 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
 }
 
-/// Writes every `every`-th frame's overlay (image, masks, keypoints by class) into `dir`.
+/// Writes every `every`-th frame's overlay into `dir`: the image, the instance masks and the
+/// keypoints by class (the paper's Fig. 7b); with the moving-object test on, only the masks of the
+/// objects found moving and the keypoints kept (green) or dropped (red) by it (Figs. 7c and 9).
+/// The front end remembers a frame, its tracking result draws it.
 class OverlayWriter {
  public:
-  OverlayWriter(fs::path dir, int every) : dir_(std::move(dir)), every_(every) {
+  OverlayWriter(fs::path dir, int every, bool moving_objects)
+      : dir_(std::move(dir)), every_(every), moving_objects_(moving_objects) {
     fs::create_directories(dir_);
   }
 
-  void write(const io::FrameBundle& bundle, const tracking::Frame& frame) const {
+  void remember(const io::FrameBundle& bundle, const tracking::Frame& frame) {
     if (bundle.index % static_cast<std::size_t>(every_) != 0) return;
-    std::vector<semantics::LabelledPoint> points;
+    Pending pending{
+        bundle.index, bundle.image0, bundle.masks.value_or(sensors::InstanceMasks{}), {}};
     for (const features::Keypoint& k : frame.features.keypoints)
-      points.push_back({{k.pixel.x(), k.pixel.y()}, k.class_id});
-    const sensors::InstanceMasks none;
-    const sensors::InstanceMasks& masks = bundle.masks ? *bundle.masks : none;
-    const fs::path file = dir_ / fmt::format("overlay_{:06d}.png", bundle.index);
-    if (!cv::imwrite(file.string(),
-                     semantics::drawOverlay(bundle.image0, masks.cam0, masks, points))) {
+      pending.points.push_back({{k.pixel.x(), k.pixel.y()}, k.class_id, std::nullopt});
+    const std::lock_guard lock(mutex_);  // the concurrent front end runs in its own thread
+    pending_.emplace(bundle.t_ns, std::move(pending));
+  }
+
+  void write(const tracking::TrackingResult& result) {
+    std::optional<Pending> pending;
+    {
+      const std::lock_guard lock(mutex_);
+      const auto found = pending_.find(result.t_ns);
+      if (found == pending_.end()) return;
+      pending = std::move(found->second);
+      pending_.erase(found);
+    }
+    cv::Mat ids = pending->masks.cam0;
+    if (moving_objects_) {
+      ids = movingOnly(pending->masks.cam0, result.moving);
+      const std::vector<char>& drop = result.moving.drop;
+      for (std::size_t i = 0; i < pending->points.size() && i < drop.size(); ++i)
+        pending->points[i].colour = drop[i] ? cv::Scalar(0, 0, 255) : cv::Scalar(0, 200, 0);
+    }
+    const fs::path file = dir_ / fmt::format("overlay_{:06d}.png", pending->index);
+    if (!cv::imwrite(file.string(), semantics::drawOverlay(pending->image, ids, pending->masks,
+                                                           pending->points))) {
       throw InputError(InputLocation{file}, "cannot write the overlay image");
     }
   }
 
  private:
+  struct Pending {
+    std::size_t index = 0;
+    cv::Mat image;
+    sensors::InstanceMasks masks;
+    std::vector<semantics::LabelledPoint> points;
+  };
+
+  /// The instance-id image with only the instances the test found moving (the final mask).
+  static cv::Mat movingOnly(const cv::Mat& ids, const dynamic::MovingObjectReport& report) {
+    if (ids.empty()) return ids;
+    std::set<int> moving;
+    for (const dynamic::ObjectDecision& object : report.objects)
+      if (object.decision == dynamic::ObjectState::kMoving) moving.insert(object.instance_id);
+    cv::Mat out = ids.clone();
+    out.forEach<std::uint16_t>([&](std::uint16_t& id, const int*) {
+      if (id != 0 && !moving.count(id)) id = 0;
+    });
+    return out;
+  }
+
   fs::path dir_;
   int every_;
+  bool moving_objects_;
+  std::mutex mutex_;
+  std::map<TimeNs, Pending> pending_;
 };
 
 void printMatchCounts(const system::System& slam) {
@@ -305,10 +354,12 @@ class RunCommand : public Command {
     std::optional<OverlayWriter> overlay;
     if (overlay_dir_) {
       refuseOutputInsideDataset(*overlay_dir_, "--overlay");
-      overlay.emplace(*overlay_dir_, overlay_every_);
+      overlay.emplace(*overlay_dir_, overlay_every_,
+                      options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
+                          options.tracker.dynamic.geometric);
       slam.setFrontEndCallback(
           [&overlay](const io::FrameBundle& bundle, const tracking::Frame& frame) {
-            overlay->write(bundle, frame);
+            overlay->remember(bundle, frame);
           });
     }
 
@@ -328,6 +379,7 @@ class RunCommand : public Command {
     slam.run(*source, [&](const tracking::TrackingResult& result) {
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       if (dynamic_log) dynamic_log->write(result);
+      if (overlay) overlay->write(result);
       progress.update(slam.timings().frames, source->size(), result, slam);
     });
     const system::TimingSummary& t = slam.timings();

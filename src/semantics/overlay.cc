@@ -73,7 +73,8 @@ cv::Mat drawOverlay(const cv::Mat& image, const cv::Mat& ids, const sensors::Ins
   for (const LabelledPoint& p : points) {
     const cv::Point centre(cvRound(p.pixel.x), cvRound(p.pixel.y));
     cv::circle(canvas, centre, 3, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
-    cv::circle(canvas, centre, 2, pointColour(p.class_id), cv::FILLED, cv::LINE_AA);
+    cv::circle(canvas, centre, 2, p.colour ? *p.colour : pointColour(p.class_id), cv::FILLED,
+               cv::LINE_AA);
   }
   return canvas;
 }

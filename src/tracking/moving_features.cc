@@ -49,7 +49,6 @@ Frame Tracker::removeMovingFeatures(const Frame& frame, const Prediction& predic
     }
   }
   Frame without = frame.withoutKeypoints(result.moving.drop, &kept);
-  result.moving.drop.clear();
   result.times.moving_objects_ms =
       std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return without;

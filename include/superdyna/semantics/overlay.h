@@ -4,6 +4,7 @@
 // and keypoints as dots coloured by their class (outlined in black).
 
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "superdyna/sensors/instance_masks.h"
@@ -13,6 +14,8 @@ namespace superdyna::semantics {
 struct LabelledPoint {
   cv::Point2d pixel;
   int class_id = sensors::kInstanceClassBackground;
+  /// BGR colour instead of the class's (the moving-object overlay: kept green, dropped red).
+  std::optional<cv::Scalar> colour;
 };
 
 /// BGR colour of a class's masks: vehicle blue, pedestrian orange, other movable violet (and

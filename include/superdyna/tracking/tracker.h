@@ -157,7 +157,8 @@ struct TrackingResult {
   /// gravity alignment; mono-inertial: scale too): poses reported earlier on this map map into the
   /// new frame by mapping::transformBodyPose.
   std::optional<Sim3d> world_change;
-  /// The moving-object test's decisions (objects empty with dynamic.mode off); drop is cleared.
+  /// The moving-object test's decisions (objects empty with dynamic.mode off); drop indexes the
+  /// frame's keypoints as the front end built them.
   dynamic::MovingObjectReport moving;
   int culled_moving_points = 0;  ///< Map points culled because their object moves.
   StageTimes times;
