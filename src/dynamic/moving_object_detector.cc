@@ -118,6 +118,7 @@ void MovingObjectOptions::validate() const {
   require(max_hamming >= 0, "max_hamming", "must be >= 0");
   require(max_l2_distance >= 0.0, "max_l2_distance", "must be >= 0");
   require(seed >= 0, "seed", "must be >= 0");
+  require(baseline_frames == 1 || baseline_frames == 2, "baseline_frames", "must be 1 or 2");
   require(geometric_cell_px >= 8, "geometric_cell_px", "must be >= 8");
   require(geometric_min_outliers >= 1, "geometric_min_outliers", "must be >= 1");
   require(geometric_outlier_share > 0.0 && geometric_outlier_share <= 1.0,
@@ -142,14 +143,15 @@ MovingObjectDetector::MovingObjectDetector(const MovingObjectOptions& options,
   }
 }
 
-double MovingObjectDetector::pairScale(const Pair& pair, const FrameObservations& previous,
-                                       const FrameObservations& current) const {
-  const int octave = std::max(previous.features->keypoints[pair.previous].octave,
-                              current.features->keypoints[pair.current].octave);
+double MovingObjectDetector::linkScale(const Link& link, const FrameObservations& current) const {
+  const int octave = std::max(
+      link.from.octave, current.features->keypoints[static_cast<std::size_t>(link.current)].octave);
   return std::pow(pyramid_scale_factor_, octave);
 }
 
 void MovingObjectDetector::reset() {
+  ancestors_.clear();
+  has_ancestors_ = false;
   tracks_.clear();
   track_of_previous_instance_.clear();
 }
@@ -201,27 +203,57 @@ SE3d MovingObjectDetector::refinedMotion(const std::vector<Pair>& background,
   return refineRelativePose(points, observed, T_cur_prev, focal_px_);
 }
 
-MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
-    const std::vector<Pair>& pairs, const FrameObservations& previous,
-    const FrameObservations& current, const SE3d& T_cur_prev) const {
-  std::array<std::vector<double>, kNumTests> residuals;
-  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
+MovingObjectDetector::Endpoint MovingObjectDetector::endpointOf(const FrameObservations& frame,
+                                                                int i) const {
+  const auto k = static_cast<std::size_t>(i);
+  Endpoint end;
+  end.x = (*frame.normalized)[k];
+  end.has_depth = frame.hasDepth(k);
+  if (end.has_depth) end.p = (*frame.p_c)[k];
+  end.octave = frame.features->keypoints[k].octave;
+  return end;
+}
+
+std::vector<MovingObjectDetector::Link> MovingObjectDetector::linksOf(
+    const std::vector<Pair>& pairs, const FrameObservations& previous) const {
+  std::vector<Link> links;
+  links.reserve(pairs.size());
+  for (const Pair& pair : pairs)
+    links.push_back({endpointOf(previous, pair.previous), pair.current});
+  return links;
+}
+
+std::vector<MovingObjectDetector::Link> MovingObjectDetector::chainedLinksOf(
+    const std::vector<Pair>& pairs) const {
+  std::vector<Link> links;
   for (const Pair& pair : pairs) {
-    const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
-    const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
-    const double scale = pairScale(pair, previous, current);
+    const auto k = static_cast<std::size_t>(pair.previous);
+    if (k < ancestors_.size() && ancestors_[k]) links.push_back({*ancestors_[k], pair.current});
+  }
+  return links;
+}
+
+MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
+    const std::vector<Link>& links, const FrameObservations& current,
+    const SE3d& T_cur_from) const {
+  std::array<std::vector<double>, kNumTests> residuals;
+  const bool translating = T_cur_from.t.norm() >= options_.min_translation_m;
+  for (const Link& link : links) {
+    const Eigen::Vector2d& x_from = link.from.x;
+    const Eigen::Vector2d& x_cur = (*current.normalized)[static_cast<std::size_t>(link.current)];
+    const double scale = linkScale(link, current);
     const auto push = [&](ResidualTest test, std::optional<double> residual) {
       if (residual) residuals[index(test)].push_back(*residual / scale);
     };
     if (translating) {
-      push(ResidualTest::kEpipolar, epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_));
+      push(ResidualTest::kEpipolar, epipolarDistancePx(x_from, x_cur, T_cur_from, focal_px_));
     } else {
       push(ResidualTest::kRotationTransfer,
-           rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_));
+           rotationTransferDistancePx(x_from, x_cur, T_cur_from, focal_px_));
     }
-    if (previous.hasDepth(pair.previous)) {
+    if (link.from.has_depth) {
       push(ResidualTest::kReprojection,
-           reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_));
+           reprojectionDistancePx(link.from.p, x_cur, T_cur_from, focal_px_));
     }
   }
   Thresholds thresholds;
@@ -236,36 +268,34 @@ MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
   return thresholds;
 }
 
-std::optional<std::pair<double, double>> MovingObjectDetector::pairResidual(
-    const Pair& pair, const FrameObservations& previous, const FrameObservations& current,
-    const SE3d& T_cur_prev, const Thresholds& thresholds) const {
-  const bool translating = T_cur_prev.t.norm() >= options_.min_translation_m;
-  const Eigen::Vector2d& x_prev = (*previous.normalized)[pair.previous];
-  const Eigen::Vector2d& x_cur = (*current.normalized)[pair.current];
+std::optional<std::pair<double, double>> MovingObjectDetector::linkResidual(
+    const Link& link, const FrameObservations& current, const SE3d& T_cur_from,
+    const Thresholds& thresholds) const {
+  const bool translating = T_cur_from.t.norm() >= options_.min_translation_m;
+  const Eigen::Vector2d& x_cur = (*current.normalized)[static_cast<std::size_t>(link.current)];
   ResidualTest test = translating ? ResidualTest::kEpipolar : ResidualTest::kRotationTransfer;
   std::optional<double> residual;
-  if (options_.stereo_reprojection && previous.hasDepth(pair.previous)) {
+  if (options_.stereo_reprojection && link.from.has_depth) {
     test = ResidualTest::kReprojection;
-    residual = reprojectionDistancePx((*previous.p_c)[pair.previous], x_cur, T_cur_prev, focal_px_);
+    residual = reprojectionDistancePx(link.from.p, x_cur, T_cur_from, focal_px_);
   } else if (translating) {
-    residual = epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+    residual = epipolarDistancePx(link.from.x, x_cur, T_cur_from, focal_px_);
   } else {
-    residual = rotationTransferDistancePx(x_prev, x_cur, T_cur_prev, focal_px_);
+    residual = rotationTransferDistancePx(link.from.x, x_cur, T_cur_from, focal_px_);
   }
   if (!residual) return std::nullopt;
-  return std::make_pair(*residual, pairScale(pair, previous, current) * thresholds.px[index(test)]);
+  return std::make_pair(*residual, linkScale(link, current) * thresholds.px[index(test)]);
 }
 
-void MovingObjectDetector::testObject(const std::vector<Pair>& pairs,
-                                      const FrameObservations& previous,
-                                      const FrameObservations& current, const SE3d& T_cur_prev,
+void MovingObjectDetector::testObject(const std::vector<Link>& links,
+                                      const FrameObservations& current, const SE3d& T_cur_from,
                                       const Thresholds& thresholds, std::uint64_t draw_seed,
                                       ObjectDecision& decision) const {
-  const std::vector<Pair> drawn =
-      drawSubset(pairs, static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
+  const std::vector<Link> drawn =
+      drawSubset(links, static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
   double worst_excess = -std::numeric_limits<double>::infinity();
-  for (const Pair& pair : drawn) {
-    const auto tested = pairResidual(pair, previous, current, T_cur_prev, thresholds);
+  for (const Link& link : drawn) {
+    const auto tested = linkResidual(link, current, T_cur_from, thresholds);
     if (!tested) continue;
     const auto [residual, threshold] = *tested;
     ++decision.tested;
@@ -278,8 +308,7 @@ void MovingObjectDetector::testObject(const std::vector<Pair>& pairs,
   }
 }
 
-std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<Pair>& background,
-                                                              const FrameObservations& previous,
+std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<Link>& background,
                                                               const FrameObservations& current,
                                                               const SE3d& T_cur_prev,
                                                               const Thresholds& thresholds,
@@ -289,10 +318,11 @@ std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<
   const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
   std::vector<int> outliers(static_cast<std::size_t>(cols * rows), 0);
   std::vector<int> tested(outliers.size(), 0);
-  for (const Pair& pair : background) {
-    const auto result = pairResidual(pair, previous, current, T_cur_prev, thresholds);
+  for (const Link& link : background) {
+    const auto result = linkResidual(link, current, T_cur_prev, thresholds);
     if (!result) continue;
-    const std::size_t k = cellOf(current.features->keypoints[pair.current].pixel, cols, rows);
+    const std::size_t k = cellOf(
+        current.features->keypoints[static_cast<std::size_t>(link.current)].pixel, cols, rows);
     ++tested[k];
     if (result->first > options_.geometric_threshold_factor * result->second) ++outliers[k];
   }
@@ -375,19 +405,41 @@ void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested
 
 void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
                                        const FrameObservations& previous,
-                                       const FrameObservations& current, const SE3d& T_cur_prev,
-                                       const Thresholds& thresholds,
+                                       const FrameObservations& current, const Baseline& one,
+                                       const std::optional<Baseline>& two,
                                        std::map<int, ObjectDecision>& objects) const {
   const std::uint64_t frame_seed = mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
   for (auto& [instance, object] : objects) {
     const auto found = pairs_of.find(instance);
     if (found == pairs_of.end()) continue;
     object.pairs = static_cast<int>(found->second.size());
-    if (object.pairs >= options_.min_pairs) {
-      testObject(found->second, previous, current, T_cur_prev, thresholds,
-                 frame_seed ^ static_cast<std::uint64_t>(instance), object);
+    if (object.pairs < options_.min_pairs) continue;
+    const std::uint64_t seed = frame_seed ^ static_cast<std::uint64_t>(instance);
+    if (two) {
+      // The longer baseline doubles a slow mover's displacement; the object's links through the
+      // previous frame are tested when it has enough of them.
+      const std::vector<Link> chained = chainedLinksOf(found->second);
+      if (static_cast<int>(chained.size()) >= options_.min_pairs) {
+        testObject(chained, current, two->T_cur_from, two->thresholds, seed, object);
+        continue;
+      }
     }
+    testObject(linksOf(found->second, previous), current, one.T_cur_from, one.thresholds, seed,
+               object);
   }
+}
+
+void MovingObjectDetector::rememberAncestors(const std::vector<Pair>& pairs,
+                                             const FrameObservations& previous,
+                                             const FrameObservations& current,
+                                             const SE3d& T_cur_prev) {
+  std::vector<std::optional<Endpoint>> next(current.features->size());
+  for (const Pair& pair : pairs) {
+    next[static_cast<std::size_t>(pair.current)] = endpointOf(previous, pair.previous);
+  }
+  ancestors_ = std::move(next);
+  T_previous_ = T_cur_prev;
+  has_ancestors_ = true;
 }
 
 void MovingObjectDetector::dropKeypoints(const std::map<int, ObjectDecision>& objects,
@@ -445,7 +497,12 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
     const SE3d T = options_.refine_motion
                        ? refinedMotion(background, *previous, current, T_cur_prev)
                        : T_cur_prev;
-    const Thresholds thresholds = backgroundThresholds(background, *previous, current, T);
+    const Thresholds thresholds = backgroundThresholds(linksOf(background, *previous), current, T);
+    // Two frames back: the background's links through the previous frame, and the motion since.
+    const bool two_step = options_.baseline_frames == 2 && has_ancestors_;
+    const SE3d T2 = T * T_previous_;
+    const Thresholds thresholds2 =
+        two_step ? backgroundThresholds(chainedLinksOf(background), current, T2) : thresholds;
     if (options_.geometric) {
       // Background features that left the narrow search radius (fast unlabelled movers) are
       // searched again as widely as objects; only the cell test sees those pairs.
@@ -453,14 +510,22 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
       for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, false, true, background)) {
         all.push_back(pair);
       }
-      moving_cells = movingBackgroundCells(all, *previous, current, T, thresholds, report);
+      moving_cells = movingBackgroundCells(linksOf(all, *previous), current, T, thresholds, report);
     }
+    std::vector<Pair> all_pairs = background;
     if (test_objects) {
       for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true, true, {})) {
         pairs_of[keypoints[pair.current].instance_id].push_back(pair);
+        all_pairs.push_back(pair);
       }
-      testObjects(pairs_of, *previous, current, T, thresholds, objects);
+      testObjects(pairs_of, *previous, current, Baseline{T, thresholds},
+                  two_step ? std::optional<Baseline>(Baseline{T2, thresholds2}) : std::nullopt,
+                  objects);
     }
+    rememberAncestors(all_pairs, *previous, current, T);
+  } else {
+    ancestors_.clear();
+    has_ancestors_ = false;
   }
 
   std::vector<int> instances;

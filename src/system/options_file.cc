@@ -234,6 +234,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"max_hamming", &t.dynamic.max_hamming},
         {"max_l2_distance", &t.dynamic.max_l2_distance},
         {"seed", &t.dynamic.seed},
+        {"baseline_frames", &t.dynamic.baseline_frames},
         {"geometric", &t.dynamic.geometric},
         {"geometric_cell_px", &t.dynamic.geometric_cell_px},
         {"geometric_min_outliers", &t.dynamic.geometric_min_outliers},

@@ -120,6 +120,7 @@ dynamic:
   max_hamming: 60
   max_l2_distance: 0.9
   seed: 7
+  baseline_frames: 1
   geometric: true
   geometric_cell_px: 64
   geometric_min_outliers: 5
@@ -225,7 +226,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 165u);  // every key of the eleven sections
+  EXPECT_EQ(written.size(), 166u);  // every key of the eleven sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -42,6 +42,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <vector>
 
 #include "superdyna/core/camera_model.h"
@@ -86,6 +87,9 @@ struct MovingObjectOptions {
   int max_hamming = 64;                    ///< Largest accepted Hamming distance [bits], >= 0.
   double max_l2_distance = 1.0;            ///< Largest accepted float distance, >= 0.
   int seed = 1;  ///< Seeds the draw of tested pairs (mixed with the frame time), >= 0.
+  /// 2: objects are tested over two frames where their pairs continue a pair of the last frame
+  /// (twice a slow mover's displacement); 1: the last frame only (the paper).
+  int baseline_frames = 2;
   /// The geometric test of background features, on top of any mode (see the file comment).
   bool geometric = false;
   int geometric_cell_px = 48;            ///< Image cells the outliers are grouped in [px], >= 8.
@@ -167,11 +171,34 @@ class MovingObjectDetector {
     int current = 0;
   };
   struct Thresholds;
+  /// A keypoint of an earlier frame, as far as the tests need it.
+  struct Endpoint {
+    Eigen::Vector2d x = Eigen::Vector2d::Zero();  ///< Normalised coordinates.
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();  ///< Stereo point (when has_depth).
+    bool has_depth = false;
+    int octave = 0;
+  };
+  /// An earlier keypoint and the current keypoint it became.
+  struct Link {
+    Endpoint from;
+    int current = 0;
+  };
+  /// The motion from an earlier frame and the thresholds of its tests.
+  struct Baseline {
+    SE3d T_cur_from;
+    const Thresholds& thresholds;
+  };
+  Endpoint endpointOf(const FrameObservations& frame, int i) const;
+  std::vector<Link> linksOf(const std::vector<Pair>& pairs,
+                            const FrameObservations& previous) const;
+  /// The pairs' previous keypoints' own partners two frames back (those that had one).
+  std::vector<Link> chainedLinksOf(const std::vector<Pair>& pairs) const;
+  void rememberAncestors(const std::vector<Pair>& pairs, const FrameObservations& previous,
+                         const FrameObservations& current, const SE3d& T_cur_prev);
 
-  /// The position uncertainty of a pair relative to level 0: scale_factor^octave of its coarser
+  /// The position uncertainty of a link relative to level 0: scale_factor^octave of its coarser
   /// keypoint.
-  double pairScale(const Pair& pair, const FrameObservations& previous,
-                   const FrameObservations& current) const;
+  double linkScale(const Link& link, const FrameObservations& current) const;
   /// Pairs of the previous frame's background (`movable` false) or object keypoints, searched
   /// around where a static point lands within background_radius_px or, `wide`,
   /// object_search_radius_px; previous keypoints in `already` are not searched again.
@@ -181,21 +208,19 @@ class MovingObjectDetector {
   /// T_cur_prev refined on the background pairs with previous stereo depth (relative_motion.h).
   SE3d refinedMotion(const std::vector<Pair>& background, const FrameObservations& previous,
                      const FrameObservations& current, const SE3d& T_cur_prev) const;
-  Thresholds backgroundThresholds(const std::vector<Pair>& pairs, const FrameObservations& previous,
-                                  const FrameObservations& current, const SE3d& T_cur_prev) const;
-  /// The residual of a pair under its test and the threshold it is compared with [px].
-  std::optional<std::pair<double, double>> pairResidual(const Pair& pair,
-                                                        const FrameObservations& previous,
+  Thresholds backgroundThresholds(const std::vector<Link>& links, const FrameObservations& current,
+                                  const SE3d& T_cur_from) const;
+  /// The residual of a link under its test and the threshold it is compared with [px].
+  std::optional<std::pair<double, double>> linkResidual(const Link& link,
                                                         const FrameObservations& current,
-                                                        const SE3d& T_cur_prev,
+                                                        const SE3d& T_cur_from,
                                                         const Thresholds& thresholds) const;
   void testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
                    const FrameObservations& previous, const FrameObservations& current,
-                   const SE3d& T_cur_prev, const Thresholds& thresholds,
+                   const Baseline& one, const std::optional<Baseline>& two,
                    std::map<int, ObjectDecision>& objects) const;
   /// Per image cell (row-major, geometric_cell_px): whether its background pairs move.
-  std::vector<char> movingBackgroundCells(const std::vector<Pair>& background,
-                                          const FrameObservations& previous,
+  std::vector<char> movingBackgroundCells(const std::vector<Link>& background,
                                           const FrameObservations& current, const SE3d& T_cur_prev,
                                           const Thresholds& thresholds,
                                           MovingObjectReport& report) const;
@@ -203,9 +228,8 @@ class MovingObjectDetector {
   void dropKeypoints(const std::map<int, ObjectDecision>& objects,
                      const std::vector<char>& moving_cells, const FrameObservations& current,
                      MovingObjectReport& report) const;
-  void testObject(const std::vector<Pair>& pairs, const FrameObservations& previous,
-                  const FrameObservations& current, const SE3d& T_cur_prev,
-                  const Thresholds& thresholds, std::uint64_t draw_seed,
+  void testObject(const std::vector<Link>& links, const FrameObservations& current,
+                  const SE3d& T_cur_from, const Thresholds& thresholds, std::uint64_t draw_seed,
                   ObjectDecision& decision) const;
   /// The track of every current instance (`instances`) from its pairs' previous instances.
   std::map<int, int> associateTracks(const std::map<int, std::vector<Pair>>& pairs_of,
@@ -221,6 +245,10 @@ class MovingObjectDetector {
   double focal_px_ = 1.0;
   double pyramid_scale_factor_ = 1.2;
   std::map<int, Track> tracks_;
+  /// Per keypoint of the last frame: its partner in the frame before (baseline_frames 2).
+  std::vector<std::optional<Endpoint>> ancestors_;
+  SE3d T_previous_;  ///< The refined motion of the last frame from the one before.
+  bool has_ancestors_ = false;
   std::map<int, int> track_of_previous_instance_;
   int next_track_ = 0;
 };
