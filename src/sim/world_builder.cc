@@ -810,6 +810,14 @@ int movingAgentTarget(DynamicLevel level) {
 }
 
 void MoverPatternOptions::validate() const {
+  if (!active()) {
+    // Settings of a pattern without one are a mistake, not something to ignore.
+    if (group_size != 0) throw OptionError("pattern-size", "needs --dynamic-pattern");
+    if (min_distance_m != 0.0 || max_distance_m != 0.0) {
+      throw OptionError("pattern-distance", "needs --dynamic-pattern");
+    }
+    if (slow) throw OptionError("slow-movers", "needs --dynamic-pattern");
+  }
   if (group_size < 0 || group_size > 50) {
     throw OptionError("pattern-size", "must be in [0, 50] (0 = the pattern's default)");
   }

@@ -338,6 +338,13 @@ TEST(MoverPatternsTest, BadPatternOptionsGiveClearErrors) {
                                  {"dynamic-pattern", "'bus'", "street or parking"});
   options.pattern.pattern = MoverPattern::kCrowd;
   options.validate();
+  options.pattern.pattern = MoverPattern::kNone;
+  test::expectError<OptionError>([&] { options.validate(); },
+                                 {"pattern-size", "needs --dynamic-pattern"});
+  options.pattern = {};
+  options.pattern.slow = true;
+  test::expectError<OptionError>([&] { options.validate(); },
+                                 {"slow-movers", "needs --dynamic-pattern"});
 }
 
 // ---------------------------------------------------------------- written sequences
