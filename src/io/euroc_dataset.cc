@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
+#include <set>
 #include <utility>
 
 #include "superdyna/core/error.h"
@@ -242,29 +244,34 @@ GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
   return result;
 }
 
-int instanceClassId(const std::string& name, const InputLocation& where) {
+/// The class id of a class name; nullopt for "unlabelled" (agents the masks do not hold).
+std::optional<int> instanceClassId(const std::string& name, const InputLocation& where) {
+  if (name == "unlabelled") return std::nullopt;
   for (const int id : {sensors::kInstanceClassBackground, sensors::kInstanceClassVehicle,
                        sensors::kInstanceClassPedestrian, sensors::kInstanceClassOtherMovable}) {
     if (name == sensors::instanceClassName(id)) return id;
   }
-  throw InputError(
-      where,
-      fmt::format("unknown class '{}' (background | vehicle | pedestrian | other_movable)", name));
+  throw InputError(where, fmt::format("unknown class '{}' (background | vehicle | pedestrian | "
+                                      "other_movable | unlabelled)",
+                                      name));
 }
 
 /// mav0/instances.csv: "id,class,..." per instance (the simulator adds moving and lifetime).
+/// Unlabelled instances are left out: no mask pixel may hold them.
 std::map<int, int> readInstanceClasses(const fs::path& csv) {
   std::map<int, int> classes;
+  std::set<int> ids;
   for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
     requireFieldCount(row, csv, 2);
     const double id = parseFiniteDouble(row.fields[0], row.at(csv, "id"));
     if (id != std::round(id) || id < 1 || id > 65535) {
       throw InputError(row.at(csv, "id"), "expected an instance id in [1, 65535]");
     }
-    if (!classes.emplace(static_cast<int>(id), instanceClassId(row.fields[1], row.at(csv, "class")))
-             .second) {
+    if (!ids.insert(static_cast<int>(id)).second) {
       throw InputError(row.at(csv, "id"), fmt::format("instance {} listed twice", id));
     }
+    const auto class_id = instanceClassId(row.fields[1], row.at(csv, "class"));
+    if (class_id) classes.emplace(static_cast<int>(id), *class_id);
   }
   return classes;
 }
@@ -330,9 +337,11 @@ cv::Mat EurocDataset::loadInstanceMask(const fs::path& image, cv::Size size) con
     const auto* row = mask.ptr<std::uint16_t>(r);
     for (int c = 0; c < mask.cols; ++c) {
       if (row[c] != 0 && !instance_classes_.contains(row[c])) {
-        throw InputError(InputLocation{file},
-                         fmt::format("pixel ({}, {}) holds instance {}, which {} does not list", c,
-                                     r, row[c], (root_ / "instances.csv").string()));
+        throw InputError(
+            InputLocation{file},
+            fmt::format("pixel ({}, {}) holds instance {}, which {} does not list with a "
+                        "labelled class",
+                        c, r, row[c], (root_ / "instances.csv").string()));
       }
     }
   }

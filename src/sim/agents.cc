@@ -30,6 +30,9 @@ AgentSize vehicleSize() {
 AgentSize pedestrianSize() {
   return {0.35, 0.55, 1.75};
 }
+AgentSize busSize() {
+  return {12.0, 2.55, 3.2};
+}
 
 std::vector<Quad> makeBoxQuads(const AgentSize& size, int texture) {
   const double hl = 0.5 * size.length, hw = 0.5 * size.width, h = size.height;

@@ -8,9 +8,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <set>
 
 #include "superdyna/core/error.h"
 #include "superdyna/sim/renderer.h"
@@ -24,6 +26,8 @@ namespace {
 
 /// Agents with at least this many pixels count as "in view".
 constexpr int kInViewPixels = 50;
+/// FAST threshold of the corners counted in frame_stats.csv (ORB-SLAM's initial threshold).
+constexpr int kCornerThreshold = 20;
 
 // ---------------------------------------------------------------- output folder and files
 
@@ -180,6 +184,58 @@ std::map<std::uint16_t, int> countInstances(const cv::Mat& mask) {
   return counts;
 }
 
+/// The instance mask a segmenter is given: the rendered one without the unlabelled agents (their
+/// pixels read as background).
+cv::Mat labelledMask(const cv::Mat& instance, const std::set<std::uint16_t>& unlabelled) {
+  if (unlabelled.empty()) return instance;
+  cv::Mat mask = instance.clone();
+  for (int r = 0; r < mask.rows; ++r) {
+    auto* row = mask.ptr<std::uint16_t>(r);
+    for (int c = 0; c < mask.cols; ++c) {
+      if (row[c] != 0 && unlabelled.contains(row[c])) row[c] = 0;
+    }
+  }
+  return mask;
+}
+
+/// What one cam0 frame shows of the agents.
+struct FrameContent {
+  int moving_in_view = 0;  ///< Moving agents with at least kInViewPixels pixels.
+  int agent_pixels = 0;
+  int moving_pixels = 0;             ///< On agents moving at the frame's time.
+  int unlabelled_moving_pixels = 0;  ///< Of those, on unlabelled agents.
+  int corners = 0;                   ///< FAST corners in the image.
+  int moving_corners = 0;            ///< Of those, on moving agents.
+};
+
+/// Per-frame shares of moving pixels and corners, and their mean and maximum.
+class MovingShareStats {
+ public:
+  void add(const FrameContent& frame, int image_pixels) {
+    const double pixels = double(frame.moving_pixels) / image_pixels;
+    const double corners = frame.corners > 0 ? double(frame.moving_corners) / frame.corners : 0.0;
+    sum_pixels_ += pixels;
+    sum_unlabelled_ += double(frame.unlabelled_moving_pixels) / image_pixels;
+    sum_corners_ += corners;
+    max_pixels_ = std::max(max_pixels_, pixels);
+    max_corners_ = std::max(max_corners_, corners);
+    ++frames_;
+  }
+  void summarize(SimulationSummary* summary) const {
+    if (frames_ == 0) return;
+    summary->mean_moving_coverage = sum_pixels_ / frames_;
+    summary->max_moving_coverage = max_pixels_;
+    summary->mean_unlabelled_moving_coverage = sum_unlabelled_ / frames_;
+    summary->mean_moving_corner_share = sum_corners_ / frames_;
+    summary->max_moving_corner_share = max_corners_;
+  }
+
+ private:
+  double sum_pixels_ = 0.0, sum_unlabelled_ = 0.0, sum_corners_ = 0.0;
+  double max_pixels_ = 0.0, max_corners_ = 0.0;
+  int frames_ = 0;
+};
+
 /// Fraction of an image's pixels that see a surface: finite depth (the rest is the sky).
 double surfaceShare(const RenderResult& render) {
   int surface_pixels = 0;
@@ -310,7 +366,11 @@ class SequenceWriter {
         renderers_{Renderer(camera_), Renderer(camera_)},
         T_b_c_{options.rig.T_b_c0(), options.rig.T_b_c1()},
         rng_(options.seed ^ 0x5eedULL),
-        mav0_(options.output_dir / "mav0") {}
+        mav0_(options.output_dir / "mav0") {
+    for (const AgentRecord& agent : world_.agents) {
+      if (agent.object_class == ObjectClass::kUnlabelled) unlabelled_.insert(agent.instance_id);
+    }
+  }
 
   void run(const ProgressCallback& progress, SimulationSummary* summary) {
     auto data0 = openForWriting(mav0_ / "cam0/data.csv");
@@ -326,7 +386,13 @@ class SequenceWriter {
                       "t_ns)\n";
     }
     PhotometricStats stats;
-    states << "# t_ns,id,moving,pixels_cam0,pixels_cam1   (agents seen by either camera)\n";
+    states << "# t_ns,id,moving,pixels_cam0,pixels_cam1,class   (agents seen by either camera; "
+              "pixels as rendered, unlabelled agents included)\n";
+    auto frame_stats = openForWriting(mav0_ / "frame_stats.csv");
+    frame_stats << "# t_ns,agent_pixels,moving_pixels,unlabelled_moving_pixels,moving_in_view,"
+                   "corners,moving_corners   (cam0; moving: agents moving at t_ns; corners: FAST "
+                   "threshold 20 on the image)\n";
+    MovingShareStats moving_shares;
     const int per_frame_landmarks =
         static_cast<int>(std::ceil(double(options_.landmark_count) / frame_times_.size()));
     double in_view_sum = 0.0, coverage_sum = 0.0, surface_sum = 0.0;
@@ -346,7 +412,15 @@ class SequenceWriter {
                                     left.blur_samples, right.blur_samples, left.exposure_motion_px,
                                     right.exposure_motion_px);
       }
-      const int in_view = writeInstanceStates(states, t, left, right, &coverage_sum);
+      FrameContent content = writeInstanceStates(states, t, left, right);
+      countCorners(t, left, &content);
+      const int image_pixels = left.instance.rows * left.instance.cols;
+      coverage_sum += double(content.agent_pixels) / image_pixels;
+      moving_shares.add(content, image_pixels);
+      frame_stats << fmt::format("{},{},{},{},{},{},{}\n", t, content.agent_pixels,
+                                 content.moving_pixels, content.unlabelled_moving_pixels,
+                                 content.moving_in_view, content.corners, content.moving_corners);
+      const int in_view = content.moving_in_view;
       in_view_sum += in_view;
       surface_sum += surfaceShare(left);
       summary->max_moving_in_view = std::max(summary->max_moving_in_view, double(in_view));
@@ -364,6 +438,7 @@ class SequenceWriter {
     summary->mean_moving_in_view = in_view_sum / frame_times_.size();
     summary->mean_agent_coverage = coverage_sum / frame_times_.size();
     summary->mean_surface_coverage = surface_sum / frame_times_.size();
+    moving_shares.summarize(summary);
     stats.summarize(summary);
   }
 
@@ -417,19 +492,20 @@ class SequenceWriter {
   void writeFrame(int cam, const std::string& name, const RenderResult& render) const {
     const fs::path folder = mav0_ / fmt::format("cam{}", cam);
     writeImage(folder / "data" / name, render.image);
-    writeImage(folder / "mask" / name, render.instance);
+    const cv::Mat mask = labelledMask(render.instance, unlabelled_);
+    writeImage(folder / "mask" / name, mask);
     if (options_.semantic_color) {
       fs::create_directories(folder / "segmentation");
-      writeImage(folder / "segmentation" / name, colourSegmentation(render.instance));
+      writeImage(folder / "segmentation" / name, colourSegmentation(mask));
     }
   }
 
-  /// Writes the rows of the agents either camera sees; returns the moving ones in view of cam0.
-  int writeInstanceStates(std::ofstream& out, TimeNs t, const RenderResult& left,
-                          const RenderResult& right, double* coverage_sum) const {
+  /// Writes the rows of the agents either camera sees; returns what cam0 shows of them.
+  FrameContent writeInstanceStates(std::ofstream& out, TimeNs t, const RenderResult& left,
+                                   const RenderResult& right) const {
     const auto counts0 = countInstances(left.instance);
     const auto counts1 = countInstances(right.instance);
-    int in_view = 0, agent_pixels = 0;
+    FrameContent content;
     for (const SceneObject& object : world_.scene.objects) {
       if (object.instance_id == 0) continue;
       const auto it0 = counts0.find(object.instance_id);
@@ -437,13 +513,38 @@ class SequenceWriter {
       const int n0 = it0 == counts0.end() ? 0 : it0->second;
       const int n1 = it1 == counts1.end() ? 0 : it1->second;
       if (n0 == 0 && n1 == 0) continue;
-      const bool moving = object.is_moving && object.is_moving(t);
-      out << fmt::format("{},{},{},{},{}\n", t, object.instance_id, moving ? 1 : 0, n0, n1);
-      agent_pixels += n0;
-      if (moving && n0 >= kInViewPixels) ++in_view;
+      const bool moving = isMoving(object, t);
+      out << fmt::format("{},{},{},{},{},{}\n", t, object.instance_id, moving ? 1 : 0, n0, n1,
+                         toString(object.object_class));
+      content.agent_pixels += n0;
+      if (!moving) continue;
+      content.moving_pixels += n0;
+      if (object.object_class == ObjectClass::kUnlabelled) content.unlabelled_moving_pixels += n0;
+      if (n0 >= kInViewPixels) ++content.moving_in_view;
     }
-    *coverage_sum += double(agent_pixels) / (left.instance.rows * left.instance.cols);
-    return in_view;
+    return content;
+  }
+
+  static bool isMoving(const SceneObject& object, TimeNs t) {
+    return object.is_moving && object.is_moving(t);
+  }
+
+  /// FAST corners of the cam0 image, and how many lie on agents moving at t: a detector's view of
+  /// the share of features a SLAM front end would extract on movers.
+  void countCorners(TimeNs t, const RenderResult& left, FrameContent* content) const {
+    std::set<std::uint16_t> moving_ids;
+    for (const SceneObject& object : world_.scene.objects) {
+      if (object.instance_id != 0 && isMoving(object, t)) moving_ids.insert(object.instance_id);
+    }
+    std::vector<cv::KeyPoint> corners;
+    cv::FAST(left.image, corners, kCornerThreshold, true);
+    content->corners = static_cast<int>(corners.size());
+    for (const cv::KeyPoint& corner : corners) {
+      const int c = std::clamp(static_cast<int>(corner.pt.x), 0, left.instance.cols - 1);
+      const int r = std::clamp(static_cast<int>(corner.pt.y), 0, left.instance.rows - 1);
+      const std::uint16_t id = left.instance.at<std::uint16_t>(r, c);
+      if (id != 0 && moving_ids.contains(id)) ++content->moving_corners;
+    }
   }
 
   const SimulationOptions& options_;
@@ -457,6 +558,7 @@ class SequenceWriter {
   std::mt19937_64 rng_;
   fs::path mav0_;
   std::vector<Landmark> landmarks_;
+  std::set<std::uint16_t> unlabelled_;  ///< Agents left out of the written masks.
 };
 
 Se3Spline fitMotion(const MotionWindow& motion, const SimulationOptions& options) {
@@ -483,12 +585,16 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
   out << fmt::format(
       "# SuperDynaSLAM synthetic sequence: effective options and summary\n"
       "trajectory: {}\nmotion_convention: {}\nstart_s: {}\nduration_s: {}\nscene: {}\n"
-      "dynamic: {}\nseed: {}\nnoise: {}\npixel_noise_sigma: {}\ndistortion: {}\n"
+      "dynamic: {}\ndynamic_pattern: {}\npattern_size: {}\npattern_distance_m: [{}, {}]\n"
+      "slow_movers: {}\nunlabelled_share: {}\n"
+      "seed: {}\nnoise: {}\npixel_noise_sigma: {}\ndistortion: {}\n"
       "texture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\nimu_rate_hz: {}\n"
       "knot_spacing_s: {}\nimu_offset_m: [{}, {}, {}]\nimu_rotation_deg: [{}, {}, {}]\n",
       o.motion.trajectory_file ? o.motion.trajectory_file->string() : "procedural",
       toString(m.convention), o.motion.start_s, o.motion.duration_s, toString(o.world.scene),
-      toString(o.world.dynamic), o.seed, o.noise, o.pixel_noise_sigma, o.rig.distortion,
+      toString(o.world.dynamic), toString(o.world.pattern.pattern), o.world.pattern.group_size,
+      o.world.pattern.min_distance_m, o.world.pattern.max_distance_m, o.world.pattern.slow,
+      o.world.unlabelled_share, o.seed, o.noise, o.pixel_noise_sigma, o.rig.distortion,
       o.texture_dir ? o.texture_dir->string() : "procedural", o.rig.baseline_m,
       o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, o.rig.imu_offset_m.x(),
       o.rig.imu_offset_m.y(), o.rig.imu_offset_m.z(), o.rig.imu_rotation_deg.x(),
@@ -508,14 +614,18 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
   out << fmt::format(
       "summary:\n  frames: {}\n  imu_samples: {}\n"
       "  static_agents: {}\n  moving_agents: {}\n  mean_moving_in_view: {:.3f}\n"
-      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  mean_surface_coverage: {:.4f}\n"
+      "  max_moving_in_view: {}\n  mean_agent_coverage: {:.4f}\n  mean_moving_coverage: {:.4f}\n"
+      "  max_moving_coverage: {:.4f}\n  mean_unlabelled_moving_coverage: {:.4f}\n"
+      "  mean_moving_corner_share: {:.4f}\n  max_moving_corner_share: {:.4f}\n"
+      "  mean_surface_coverage: {:.4f}\n"
       "  path_length_m: {:.3f}\n"
       "  mean_blur_samples: {:.3f}\n  mean_exposure_motion_px: {:.3f}\n"
       "  max_exposure_motion_px: {:.3f}\n  min_gain: {:.4f}\n  max_gain: {:.4f}\n",
       s.frames, s.imu_samples, s.static_agents, s.moving_agents, s.mean_moving_in_view,
-      s.max_moving_in_view, s.mean_agent_coverage, s.mean_surface_coverage, s.path_length_m,
-      s.mean_blur_samples, s.mean_exposure_motion_px, s.max_exposure_motion_px, s.min_gain,
-      s.max_gain);
+      s.max_moving_in_view, s.mean_agent_coverage, s.mean_moving_coverage, s.max_moving_coverage,
+      s.mean_unlabelled_moving_coverage, s.mean_moving_corner_share, s.max_moving_corner_share,
+      s.mean_surface_coverage, s.path_length_m, s.mean_blur_samples, s.mean_exposure_motion_px,
+      s.max_exposure_motion_px, s.min_gain, s.max_gain);
 }
 
 }  // namespace

@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include "superdyna/core/error.h"
 #include "superdyna/sim/agents.h"
+#include "superdyna/sim/hash.h"
 
 namespace superdyna::sim {
 
@@ -105,6 +107,60 @@ SceneLayout layoutOf(SceneType scene) {
   return layoutOf(SceneType::kStreet);
 }
 
+/// Seeds of the mover patterns' and the unlabelled relabelling's random streams (mixed with the
+/// seed): independent of the level's stream, which they must not disturb.
+constexpr std::uint64_t kPatternStream = 0x7061747465726eULL;
+constexpr std::uint64_t kUnlabelledStream = 0x756e6c6162656cULL;
+
+/// What a mover pattern's groups are made of and how they move.
+struct PatternSpec {
+  ObjectClass object_class = ObjectClass::kVehicle;
+  AgentSize size;
+  int group_size = 1;
+  double speed_min = 0.0, speed_max = 0.0;        ///< [m/s]
+  double distance_min = 0.0, distance_max = 0.0;  ///< From the camera [m].
+  double crossing_share = 0.5;      ///< Share of groups crossing the view (the rest move along it).
+  double camera_clearance_m = 1.0;  ///< Between a member's footprint and the camera.
+  double texture_width_m = 0.0, texture_height_m = 0.0, texel_m = 0.01;
+  TextureStyle texture_style = TextureStyle::kVehicle;
+};
+
+PatternSpec patternSpec(const MoverPatternOptions& options) {
+  PatternSpec spec;
+  const bool people = options.pattern == MoverPattern::kCrowd;
+  if (people) {
+    spec = {ObjectClass::kPedestrian,
+            pedestrianSize(),
+            10,
+            1.0,
+            1.6,
+            2.5,
+            6.0,
+            0.6,
+            0.8,
+            2.0,
+            2.5,
+            0.005,
+            TextureStyle::kPedestrian};
+  } else if (options.pattern == MoverPattern::kBus) {
+    spec = {ObjectClass::kVehicle, busSize(), 1, 2.0, 5.0, 3.0, 6.0, 0.6, 1.5, 30.0, 4.0, 0.01,
+            TextureStyle::kVehicle};
+  } else {
+    spec = {ObjectClass::kVehicle, vehicleSize(), 4, 2.0, 5.0, 4.0, 7.0, 0.5, 1.5, 13.0, 4.0, 0.01,
+            TextureStyle::kVehicle};
+  }
+  if (options.slow) {
+    spec.speed_min = people ? 0.3 : 0.5;
+    spec.speed_max = people ? 0.6 : 1.5;
+  }
+  if (options.group_size > 0) spec.group_size = options.group_size;
+  if (options.max_distance_m > 0.0) {
+    spec.distance_min = options.min_distance_m;
+    spec.distance_max = options.max_distance_m;
+  }
+  return spec;
+}
+
 class WorldBuilder {
  public:
   WorldBuilder(const WorldOptions& options, const CameraPath& path)
@@ -112,7 +168,9 @@ class WorldBuilder {
         path_(path),
         samples_(samplePath(path)),
         layout_(layoutOf(options.scene)),
-        random_(options.seed) {
+        random_(options.seed),
+        pattern_random_(mix64(options.seed ^ kPatternStream)),
+        unlabelled_random_(mix64(options.seed ^ kUnlabelledStream)) {
     world_.ground_z = samples_.min_z - options.ground_clearance_m;
     // The world surrounds the path with a margin, and is never smaller than the scene's minimum
     // size (a short or hovering path still gets a whole room or street block).
@@ -135,6 +193,8 @@ class WorldBuilder {
     addClutter();
     addStaticAgents();
     addMovingAgents();
+    addPatternGroups();
+    relabelUnlabelledMovers();
     return std::move(world_);
   }
 
@@ -142,19 +202,24 @@ class WorldBuilder {
   std::vector<Quad>& staticQuads() { return world_.scene.objects.front().quads; }
 
   int addTexture(double width_m, double height_m, double texel_m, TextureStyle style) {
+    return addTexture(width_m, height_m, texel_m, style, random_);
+  }
+
+  int addTexture(double width_m, double height_m, double texel_m, TextureStyle style,
+                 Random& random) {
     const double texel = texel_m * options_.texel_scale;
     const int width = std::clamp(static_cast<int>(std::ceil(width_m / texel)), 16, 8192);
     const int height = std::clamp(static_cast<int>(std::ceil(height_m / texel)), 16, 8192);
     const double effective_texel = std::max(width_m / width, height_m / height);
     if (!options_.photos.empty()) {
       world_.scene.textures.push_back(
-          Texture::fromPhotos(options_.photos, width, height, effective_texel, random_.seed()));
+          Texture::fromPhotos(options_.photos, width, height, effective_texel, random.seed()));
     } else {
       ProceduralTextureOptions texture;
       texture.width = width;
       texture.height = height;
       texture.texel_m = effective_texel;
-      texture.seed = random_.seed();
+      texture.seed = random.seed();
       texture.style = style;
       world_.scene.textures.push_back(Texture::procedural(texture));
     }
@@ -310,9 +375,13 @@ class WorldBuilder {
 
   void addAgent(ObjectClass object_class, const LinearMotion& motion, bool moving) {
     const AgentSize size = object_class == ObjectClass::kVehicle ? vehicleSize() : pedestrianSize();
+    addAgent(object_class, size, agentTexture(object_class), motion, moving);
+  }
+
+  void addAgent(ObjectClass object_class, const AgentSize& size, int texture,
+                const LinearMotion& motion, bool moving) {
     const std::uint16_t id = nextInstanceId();
-    world_.scene.objects.push_back(
-        makeAgent(id, object_class, size, agentTexture(object_class), motion));
+    world_.scene.objects.push_back(makeAgent(id, object_class, size, texture, motion));
     world_.agents.push_back({id, object_class, moving, motion.t_begin_ns, motion.t_end_ns});
   }
 
@@ -467,6 +536,160 @@ class WorldBuilder {
     return std::make_pair(s0, s1);
   }
 
+  // ------------------------------------------------------------ mover patterns (issue 14)
+  //
+  // Drawn from a random stream of their own after the level's agents, so that every level builds
+  // the same world with or without a pattern.
+
+  void addPatternGroups() {
+    if (!options_.pattern.active()) return;
+    const PatternSpec spec = patternSpec(options_.pattern);
+    TimeNs t = path_.range.begin + secondsToNs(pattern_random_.uniform(0.0, 2.0));
+    while (t < path_.range.end) {
+      const auto end = trySpawnGroup(spec, t);
+      t = end ? *end + secondsToNs(pattern_random_.uniform(1.0, 3.0)) : t + kNsPerSecond;
+    }
+  }
+
+  /// Plans one group around the camera's view in the middle of its life; returns the end of its
+  /// life, or nullopt when no plan kept clear of the camera.
+  std::optional<TimeNs> trySpawnGroup(const PatternSpec& spec, TimeNs t_begin) {
+    for (int attempt = 0; attempt < 10; ++attempt) {
+      const auto members = planGroup(spec, t_begin);
+      if (members.empty()) continue;
+      const bool clear = std::all_of(members.begin(), members.end(), [&](const LinearMotion& m) {
+        return keepsClearOfCamera(m, spec.size, spec.camera_clearance_m);
+      });
+      if (!clear) continue;
+      for (const LinearMotion& motion : members) {
+        addAgent(spec.object_class, spec.size, patternTexture(spec), motion, true);
+      }
+      return members.front().t_end_ns;
+    }
+    return std::nullopt;
+  }
+
+  /// The members' motions (one heading and speed for all), or none when the group's path leaves
+  /// the world.
+  std::vector<LinearMotion> planGroup(const PatternSpec& spec, TimeNs t_begin) {
+    Random& random = pattern_random_;
+    const double speed = random.uniform(spec.speed_min, spec.speed_max);
+    const double distance = random.uniform(spec.distance_min, spec.distance_max);
+    const bool crossing = random.chance(spec.crossing_share);
+    const std::vector<Eigen::Vector2d> offsets = groupLayout(spec);  // (along, across) [m]
+    double group_length = 0.0;
+    for (const auto& o : offsets)
+      group_length = std::max(group_length, 2.0 * std::abs(o.x()));
+    group_length += spec.size.length;
+    const double half_view = distance * std::tan(0.5 * path_.horizontal_fov_rad);
+    // Crossing: from beyond one side of the view to beyond the other; along the view: past the
+    // camera for 8 s (8-30 m).
+    const double span =
+        group_length + (crossing ? 2.0 * half_view * 1.3 : std::clamp(8.0 * speed, 8.0, 30.0));
+    const TimeNs t_mid = std::min(path_.range.end, t_begin + secondsToNs(0.5 * span / speed));
+
+    const std::size_t k = samples_.indexAt(t_mid);
+    const Eigen::Vector2d forward = samples_.forward_xy[k];
+    const Eigen::Vector2d left(-forward.y(), forward.x());
+    const double view_heading = std::atan2(forward.y(), forward.x());
+    const double side = random.chance(0.5) ? 1.0 : -1.0;
+    const double heading =
+        crossing ? view_heading + side * 0.5 * M_PI + random.uniform(-0.15, 0.15)
+                 : view_heading + (random.chance(0.5) ? 0.0 : M_PI) + random.uniform(-0.1, 0.1);
+    const Eigen::Vector2d centre =
+        samples_.position[k].head<2>() +
+        (crossing ? forward * distance + left * random.uniform(-0.2, 0.2) * half_view
+                  : forward * random.uniform(6.0, 12.0) + left * side * distance);
+    const Eigen::Vector2d direction(std::cos(heading), std::sin(heading));
+    const auto inside = clipToRegion(centre, direction, 0.5 * span, 0.5 * group_length + 1.0);
+    if (!inside || inside->second - inside->first < 0.6 * span) return {};
+
+    const Eigen::Vector2d across(-direction.y(), direction.x());
+    const double life_s = (inside->second - inside->first) / speed;
+    std::vector<LinearMotion> members;
+    for (const Eigen::Vector2d& offset : offsets) {
+      LinearMotion motion;
+      motion.heading_rad = heading;
+      motion.speed_mps = speed;
+      motion.ground_z = world_.ground_z;
+      motion.t_begin_ns = t_begin;
+      motion.t_end_ns = std::min(path_.range.end, t_begin + secondsToNs(life_s));
+      motion.start_xy = centre + direction * (inside->first + offset.x()) + across * offset.y();
+      members.push_back(motion);
+    }
+    return members;
+  }
+
+  /// Where the members stand in the group, relative to its centre: (along the motion, across it).
+  std::vector<Eigen::Vector2d> groupLayout(const PatternSpec& spec) {
+    Random& random = pattern_random_;
+    const int n = spec.group_size;
+    std::vector<Eigen::Vector2d> offsets;
+    if (options_.pattern.pattern != MoverPattern::kCrowd) {
+      // A line in one lane, bumper to bumper with one gap for all.
+      const double pitch = spec.size.length + random.uniform(1.5, 3.0);
+      for (int i = 0; i < n; ++i) {
+        offsets.emplace_back((0.5 * (n - 1) - i) * pitch, random.uniform(-0.2, 0.2));
+      }
+      return offsets;
+    }
+    // People in a band, at least 0.7 m apart.
+    const double half_length = std::max(1.0, 0.25 * n), half_width = 1.5;
+    for (int i = 0; i < n; ++i) {
+      Eigen::Vector2d o;
+      for (int attempt = 0; attempt < 20; ++attempt) {
+        o = {random.uniform(-half_length, half_length), random.uniform(-half_width, half_width)};
+        const bool apart =
+            std::all_of(offsets.begin(), offsets.end(),
+                        [&](const Eigen::Vector2d& p) { return (p - o).norm() > 0.7; });
+        if (apart) break;
+      }
+      offsets.push_back(o);
+    }
+    return offsets;
+  }
+
+  int patternTexture(const PatternSpec& spec) {
+    constexpr std::size_t kPoolSize = 12;
+    if (pattern_textures_.size() < kPoolSize) {
+      pattern_textures_.push_back(addTexture(spec.texture_width_m, spec.texture_height_m,
+                                             spec.texel_m, spec.texture_style, pattern_random_));
+    }
+    return pattern_textures_[static_cast<std::size_t>(
+        pattern_random_.integer(0, static_cast<int>(pattern_textures_.size()) - 1))];
+  }
+
+  /// The box keeps at least `clearance` metres between its footprint and the camera.
+  bool keepsClearOfCamera(const LinearMotion& motion, const AgentSize& size,
+                          double clearance) const {
+    const Eigen::Vector2d half(0.5 * size.length, 0.5 * size.width);
+    for (TimeNs t = motion.t_begin_ns; t <= motion.t_end_ns; t += kPathSamplePeriodNs) {
+      const Eigen::Vector2d camera = samples_.position[samples_.indexAt(t)].head<2>();
+      const Eigen::Vector2d d = camera - motion.positionAt(t);
+      const Eigen::Vector2d local(
+          std::cos(motion.heading_rad) * d.x() + std::sin(motion.heading_rad) * d.y(),
+          -std::sin(motion.heading_rad) * d.x() + std::cos(motion.heading_rad) * d.y());
+      if ((local.cwiseAbs() - half).cwiseMax(0.0).norm() < clearance) return false;
+    }
+    return true;
+  }
+
+  /// Gives the "unlabelled" class to a share of the moving agents: one draw per moving agent in
+  /// instance order, so a larger share relabels a superset and the world is otherwise unchanged.
+  void relabelUnlabelledMovers() {
+    for (std::size_t i = 0; i < world_.agents.size(); ++i) {
+      AgentRecord& agent = world_.agents[i];
+      if (!agent.ever_moving) continue;
+      if (unlabelled_random_.uniform(0.0, 1.0) >= options_.unlabelled_share) continue;
+      agent.object_class = ObjectClass::kUnlabelled;
+      SceneObject& object = world_.scene.objects[i + 1];  // objects[0] is the static world
+      if (object.instance_id != agent.instance_id) {
+        throw std::logic_error("world builder: agent table and scene objects out of step");
+      }
+      object.object_class = ObjectClass::kUnlabelled;
+    }
+  }
+
   /// The agent keeps clear of the camera during its whole life.
   bool isCollisionFree(const LinearMotion& motion, ObjectClass object_class) const {
     const double min_distance = object_class == ObjectClass::kVehicle ? 3.5 : 1.5;  // [m]
@@ -483,10 +706,12 @@ class WorldBuilder {
   PathSamples samples_;
   SceneLayout layout_;
   Random random_;
+  Random pattern_random_;
+  Random unlabelled_random_;
   World world_;
   Eigen::Vector2d region_min_, region_max_;
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> footprints_;  ///< centre, half size
-  std::vector<int> vehicle_textures_, pedestrian_textures_;
+  std::vector<int> vehicle_textures_, pedestrian_textures_, pattern_textures_;
   std::uint16_t next_instance_id_ = 1;
 };
 
@@ -505,6 +730,29 @@ DynamicLevel parseDynamicLevel(const std::string& name) {
   if (name == "mid") return DynamicLevel::kMid;
   if (name == "high") return DynamicLevel::kHigh;
   throw OptionError("dynamic", fmt::format("unknown dynamic level '{}' (none|low|mid|high)", name));
+}
+
+MoverPattern parseMoverPattern(const std::string& name) {
+  if (name == "none") return MoverPattern::kNone;
+  if (name == "bus") return MoverPattern::kBus;
+  if (name == "convoy") return MoverPattern::kConvoy;
+  if (name == "crowd") return MoverPattern::kCrowd;
+  throw OptionError("dynamic-pattern",
+                    fmt::format("unknown mover pattern '{}' (none|bus|convoy|crowd)", name));
+}
+
+std::string toString(MoverPattern pattern) {
+  switch (pattern) {
+    case MoverPattern::kNone:
+      return "none";
+    case MoverPattern::kBus:
+      return "bus";
+    case MoverPattern::kConvoy:
+      return "convoy";
+    case MoverPattern::kCrowd:
+      return "crowd";
+  }
+  return "unknown";
 }
 
 std::string toString(SceneType scene) {
@@ -541,6 +789,8 @@ std::string toString(ObjectClass object_class) {
       return "vehicle";
     case ObjectClass::kPedestrian:
       return "pedestrian";
+    case ObjectClass::kUnlabelled:
+      return "unlabelled";
   }
   return "unknown";
 }
@@ -559,9 +809,40 @@ int movingAgentTarget(DynamicLevel level) {
   return 0;
 }
 
+void MoverPatternOptions::validate() const {
+  if (!active()) {
+    // Settings of a pattern without one are a mistake, not something to ignore.
+    if (group_size != 0) throw OptionError("pattern-size", "needs --dynamic-pattern");
+    if (min_distance_m != 0.0 || max_distance_m != 0.0) {
+      throw OptionError("pattern-distance", "needs --dynamic-pattern");
+    }
+    if (slow) throw OptionError("slow-movers", "needs --dynamic-pattern");
+  }
+  if (group_size < 0 || group_size > 50) {
+    throw OptionError("pattern-size", "must be in [0, 50] (0 = the pattern's default)");
+  }
+  const bool default_distance = min_distance_m == 0.0 && max_distance_m == 0.0;
+  if (!default_distance &&
+      !(min_distance_m >= 1.0 && min_distance_m <= max_distance_m && max_distance_m <= 50.0)) {
+    throw OptionError("pattern-distance",
+                      fmt::format("expected MIN,MAX with 1 <= MIN <= MAX <= 50 m, got {},{}",
+                                  min_distance_m, max_distance_m));
+  }
+}
+
 void WorldOptions::validate() const {
   if (!(ground_clearance_m > 0.0)) throw OptionError("ground_clearance_m", "must be > 0");
   if (!(texel_scale > 0.0)) throw OptionError("texel_scale", "must be > 0");
+  pattern.validate();
+  if (scene == SceneType::kIndoor &&
+      (pattern.pattern == MoverPattern::kBus || pattern.pattern == MoverPattern::kConvoy)) {
+    throw OptionError("dynamic-pattern", fmt::format("pattern '{}' needs a street or parking "
+                                                     "scene (indoor: none or crowd)",
+                                                     toString(pattern.pattern)));
+  }
+  if (!(unlabelled_share >= 0.0 && unlabelled_share <= 1.0)) {
+    throw OptionError("unlabelled", fmt::format("must be in [0, 1], got {}", unlabelled_share));
+  }
 }
 
 World buildWorld(const WorldOptions& options, const CameraPath& camera_path) {

@@ -78,6 +78,12 @@ if have_shared "$euroc_dir" "no summary of a real sequence"; then
 fi
 mkdir -p "$work/empty"
 expect_failure "cam0" "$superdyna" info --dataset euroc --path "$work/empty"
+# Bad mover options stop `simulate` with the option named, before it writes anything.
+expect_failure "option 'pattern-distance': expected MIN,MAX with 1 <= MIN <= MAX <= 50 m, got 6,3" \
+  "$superdyna" simulate --out "$work/bad_sim" --dynamic-pattern crowd --pattern-distance 6,3
+expect_failure "option 'dynamic-pattern': pattern 'bus' needs a street or parking scene" \
+  "$superdyna" simulate --out "$work/bad_sim" --scene indoor --dynamic-pattern bus
+[ ! -e "$work/bad_sim" ] || { echo "a refused simulation wrote $work/bad_sim"; exit 1; }
 # `run` never writes its trajectory over a file of the dataset.
 "$superdyna" simulate --out "$work/tiny" --duration 0.5 --dynamic none --landmarks 0 >/dev/null
 gt_csv="$work/tiny/mav0/state_groundtruth_estimate0/data.csv"

@@ -166,6 +166,37 @@ TEST(DatasetSourceTest, EurocMaskProblemsNameTheFile) {
   test::expectError([&] { EurocDataset::open(path); }, {"instances.csv", "unknown class 'truck'"});
 }
 
+TEST(DatasetSourceTest, EurocUnlabelledInstancesAreListedButNeverInTheMasks) {
+  SUPERDYNA_REQUIRE_SHARED(shared, kEuroc);
+  const test::ScratchDir dir("dataset_source_unlabelled");
+  const fs::path path = eurocWithMasks(shared, dir);
+  // Instance 3 is a simulated mover of a class the masks do not label.
+  test::writeFile(path / "mav0" / "instances.csv",
+                  "# id,class,moving,t_begin_ns,t_end_ns\n1,vehicle,1,0,0\n2,pedestrian,0,0,0\n"
+                  "3,unlabelled,1,0,0\n");
+  const EurocDataset dataset = EurocDataset::open(path);
+  EXPECT_EQ(dataset.instanceClasses(),
+            (std::map<int, int>{{1, sensors::kInstanceClassVehicle},
+                                {2, sensors::kInstanceClassPedestrian}}));
+  DatasetSourceOptions options;
+  options.instance_masks = true;
+  options.max_frames = 3;
+  const auto source = openDataset(DatasetKind::kEuroc, path, options);
+  const auto bundle = source->next();
+  ASSERT_TRUE(bundle && bundle->masks);
+  EXPECT_EQ(bundle->masks->classOf(3), sensors::kInstanceClassBackground);
+  // A mask holding an unlabelled instance is refused like one holding an unknown id.
+  const fs::path third = path / "mav0/cam0/mask" / dataset.stereoFrames()[2].cam0.filename();
+  cv::Mat mask = cv::imread(third.string(), cv::IMREAD_UNCHANGED);
+  mask.at<std::uint16_t>(5, 7) = 3;
+  ASSERT_TRUE(cv::imwrite(third.string(), mask));
+  ASSERT_TRUE(source->next());
+  test::expectError([&] { source->next(); }, {"instance 3", "instances.csv", "labelled class"});
+  test::writeFile(path / "mav0" / "instances.csv", "1,vehicle,1,0,0\n1,unlabelled,1,0,0\n");
+  test::expectError([&] { EurocDataset::open(path); },
+                    {"instances.csv", "instance 1 listed twice"});
+}
+
 TEST(DatasetSourceTest, ParsesKindNames) {
   EXPECT_EQ(parseDatasetKind("euroc"), DatasetKind::kEuroc);
   EXPECT_EQ(parseDatasetKind("kitti"), DatasetKind::kKitti);

@@ -65,13 +65,13 @@ class EurocDataset {
   bool hasGroundTruth() const { return !ground_truth_.empty(); }
   /// Whether the sequence has per-camera instance masks and mav0/instances.csv (simulator).
   bool hasInstanceMasks() const { return has_instance_masks_; }
-  /// Instance id -> semantic class (sensors::kInstanceClass*) from mav0/instances.csv; empty
-  /// without it.
+  /// Instance id -> semantic class (sensors::kInstanceClass*) from mav0/instances.csv,
+  /// unlabelled instances left out; empty without the file.
   const std::map<int, int>& instanceClasses() const { return instance_classes_; }
   /// The instance mask of an image of this dataset (`image` a path from monoFrames() or
   /// stereoFrames()): mav0/camN/mask/<same file name>, CV_16UC1 of the image's size. Throws
   /// InputError naming the mask file when it is missing, unreadable, of another size or type,
-  /// or holds an instance id that instances.csv does not list.
+  /// or holds an instance id that instances.csv does not list with a labelled class.
   cv::Mat loadInstanceMask(const std::filesystem::path& image, cv::Size size) const;
 
   const CameraCalibration& cam0Calibration() const { return cam0_; }

@@ -19,6 +19,7 @@ struct AgentSize {
 
 AgentSize vehicleSize();
 AgentSize pedestrianSize();
+AgentSize busSize();  ///< 12 x 2.55 x 3.2 m, the bus mover pattern's body.
 
 /// Textured box with its origin at the centre of its footprint on the ground; 5 faces (no
 /// bottom). Faces share `texture`, each with its own texture offset.

@@ -16,7 +16,9 @@
 namespace superdyna::sim {
 
 /// Semantic class of an object, as the segmentation masks and the instance table report it.
-enum class ObjectClass { kBackground, kVehicle, kPedestrian };
+/// kUnlabelled: a mover of a class the masks do not label (it looks like background to them); it
+/// is listed in the instance tables only.
+enum class ObjectClass { kBackground, kVehicle, kPedestrian, kUnlabelled };
 std::string toString(ObjectClass object_class);
 
 /// A planar rectangle origin + a * edge_u + b * edge_v, (a, b) in [0, 1]^2, in its object's

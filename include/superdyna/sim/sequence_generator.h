@@ -3,12 +3,15 @@
 // io::EurocDataset and by other EuRoC tools:
 //
 //   mav0/cam{0,1}/{sensor.yaml, data.csv, data/<t_ns>.png}   752x480 gray images, 20 Hz
-//   mav0/cam{0,1}/mask/<t_ns>.png                            16-bit instance ids (0 = background)
+//   mav0/cam{0,1}/mask/<t_ns>.png                            16-bit instance ids (0 = background;
+//                                                            unlabelled agents read as background)
 //   mav0/cam{0,1}/segmentation/<t_ns>.png                    optional VIODE-like colour labels
 //   mav0/imu0/{sensor.yaml, data.csv}                        200 Hz gyro + accel
 //   mav0/state_groundtruth_estimate0/{sensor.yaml, data.csv} body pose, velocity, true biases
 //   mav0/instances.csv                                       id -> class, moving?, lifetime
-//   mav0/instance_states.csv                                 per frame: id, moving, pixel counts
+//   mav0/instance_states.csv                                 per frame: id, moving, pixels, class
+//   mav0/frame_stats.csv                                     per frame: agent / moving pixels,
+//                                                            FAST corners on moving agents
 //   mav0/segmentation_colors.csv                             id -> r,g,b (with segmentation)
 //   mav0/landmarks.csv                                       ground-truth 3D points on surfaces
 //   mav0/photometric.csv                                     per frame: gains, blur (when on)
@@ -93,6 +96,13 @@ struct SimulationSummary {
   double mean_moving_in_view = 0.0;  ///< Moving agents with >= 50 pixels in cam0, per frame.
   double max_moving_in_view = 0.0;
   double mean_agent_coverage = 0.0;  ///< Fraction of cam0 pixels on agents, per frame.
+  /// Fraction of cam0 pixels on agents moving at the frame's time: mean and largest over frames.
+  double mean_moving_coverage = 0.0;
+  double max_moving_coverage = 0.0;
+  double mean_unlabelled_moving_coverage = 0.0;  ///< Of those, on unlabelled agents (mean).
+  /// Share of the FAST corners of cam0 (threshold 20) that lie on moving agents, per frame.
+  double mean_moving_corner_share = 0.0;
+  double max_moving_corner_share = 0.0;
   /// Fraction of cam0 pixels that see a surface (textured world or agent, not the sky), per frame.
   double mean_surface_coverage = 0.0;
   double path_length_m = 0.0;
