@@ -77,9 +77,9 @@ struct MovingObjectOptions {
   int moving_confirmations = 2;  ///< Moving frames in a row that set a static track, >= 1.
   bool drop_unverified = true;   ///< Drop objects never verified (new, too few pairs).
   /// The tracker also culls the local map's points whose instance id is that of a moving object:
-  /// right when instance ids are stable over the sequence (dataset masks); turn it off for
-  /// segmenters that renumber instances every frame (then only the points of the moving object's
-  /// pairs in the previous frame are culled).
+  /// right when instance ids are stable over the sequence (dataset masks); `superdyna run` turns it
+  /// off for other segmenters, which renumber instances every frame (then only the points of the
+  /// moving object's pairs in the previous frame are culled).
   bool cull_points_by_instance = true;
   double background_radius_px = 20.0;      ///< Search radius of background pairs [px], > 0.
   double object_search_radius_px = 120.0;  ///< Search radius of object pairs [px], > 0.
