@@ -180,11 +180,21 @@ std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
   search.max_distance = options_.max_hamming;
   search.max_l2_distance = options_.max_l2_distance;
   search.same_class_only = true;
-  const features::KeypointGrid grid(current.features->keypoints, current.features->image_size);
+  // Candidates of the same kind only (movable or background): the wide object search would
+  // otherwise sort through every keypoint within 120 px.
+  std::vector<int> candidates;
+  for (std::size_t j = 0; j < current.features->size(); ++j) {
+    if (isMovable(current.features->keypoints[j]) == movable)
+      candidates.push_back(static_cast<int>(j));
+  }
+  const features::FeatureSet train = current.features->select(candidates);
+  const features::KeypointGrid grid(train.keypoints, train.image_size);
   std::vector<Pair> pairs;
   for (const features::Match& match :
-       features::matchByProjection(query, predicted, *current.features, grid, search)) {
-    if (finite((*current.normalized)[match.train])) pairs.push_back({match.query, match.train});
+       features::matchByProjection(query, predicted, train, grid, search)) {
+    const int j = candidates[static_cast<std::size_t>(match.train)];
+    if (finite((*current.normalized)[static_cast<std::size_t>(j)]))
+      pairs.push_back({match.query, j});
   }
   return pairs;
 }
