@@ -8,6 +8,7 @@
 # labels keypoints with the sequence's instance masks and matches class-wise.
 # Environment: SUPERDYNA (binary, default build/bin/superdyna), MODE (stereo-inertial),
 #   CONFIG (default configs/euroc_stereo_inertial.yaml or euroc_mono_inertial.yaml by MODE),
+#   S_CONFIG (the learned-feature cells' config, default the same name with _xfeat),
 #   FEATURES (xfeat), DETERMINISTIC (0: concurrent runs, which differ run to run; 1: the
 #   sequential pipeline, identical runs - then vary the sequences instead), OUT (output folder),
 #   TABLES (10,11: which tables).
@@ -26,21 +27,24 @@ case "$mode" in
   *) default_config=$repo/configs/euroc_stereo_inertial.yaml ;;
 esac
 config=${CONFIG:-$default_config}
+s_config=${S_CONFIG:-${default_config%.yaml}_xfeat.yaml}
 features=${FEATURES:-xfeat}
 tables=${TABLES:-10,11}
 out=${OUT:-$(mktemp -d "${TMPDIR:-/tmp}/superdyna_ablation.XXXXXX")}
 det_flag=""
 [ "${DETERMINISTIC:-0}" = 1 ] && det_flag="--deterministic"
 mkdir -p "$out"
-echo "ablation: mode $mode, config $config, S = $features, $runs runs per cell; files in $out"
+echo "ablation: mode $mode, config $config (S cells: $s_config), S = $features, $runs runs per cell;" \
+  "files in $out"
 
 # cell NAME FEATURES DYNAMIC [EXTRA YAML LINES...]: runs the cell on every sequence and prints a
-# row per sequence: name, median, mean ± CI (from superdyna eval's N-run statistics).
+# row per sequence: name, median, mean ± CI (from superdyna eval's N-run statistics). ORB cells use
+# CONFIG, learned-feature cells S_CONFIG.
 cell() {
   local name=$1 feats=$2 dyn=$3
   shift 3
   local cfg=$out/$name.yaml
-  cp "$config" "$cfg"
+  if [ "$feats" = orb ]; then cp "$config" "$cfg"; else cp "$s_config" "$cfg"; fi
   for line in "$@"; do printf '%s\n' "$line" >>"$cfg"; done
   for seq in "${sequences[@]}"; do
     local tag
