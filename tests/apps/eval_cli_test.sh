@@ -106,4 +106,12 @@ expect_failure "is an input file; refusing to overwrite it" \
   "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial \
   --config "$work/a_config.yaml" --output "$work/a.txt"
 cmp -s "$work/a_config.yaml" "$work/a_config_copy.yaml" || { echo "--config was modified"; exit 1; }
+# The moving-object test needs labelled keypoints; eval-dynamic names the bad field of a log.
+expect_failure "option '--dynamic': mode semantic-geometric needs keypoints labelled by a segmenter" \
+  "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo --dynamic semantic-geometric \
+  --output "$work/d.txt"
+printf 't_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision,keypoints,dropped\n1,2,vehicle,3,3,1.0,2.0,parked,5,0\n' \
+  >"$work/bad_dyn.csv"
+expect_failure "bad_dyn.csv:2 [decision]: expected moving, static or unverified" \
+  "$superdyna" eval-dynamic --log "$work/bad_dyn.csv" --path "$work/tiny"
 echo "CLI checks passed"
