@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <iostream>
 #include <random>
 
@@ -103,6 +104,8 @@ class Scene {
     for (ScenePoint& point : points_)
       if (point.instance == instance) point.p_w += delta;
   }
+  /// Keypoints of `instance` are found at `octave` (and located with that octave's noise).
+  void setOctave(int instance, int octave) { octave_of_[instance] = octave; }
   /// Renames instance ids in the next frames (a network segmenter's ids change frame to frame).
   void relabel(std::map<int, int> ids) { relabel_ = std::move(ids); }
 
@@ -117,13 +120,18 @@ class Scene {
     for (std::size_t i = 0; i < points_.size(); ++i) {
       const Eigen::Vector3d p_c = T_c_w * points_[i].p_w;
       if (p_c.z() < 0.5) continue;
-      const Eigen::Vector2d pixel =
-          kFocal * p_c.head<2>() / p_c.z() +
-          Eigen::Vector2d(320.0 + pixel_noise(rng_), 240.0 + pixel_noise(rng_));
+      // Coarser octaves locate corners less precisely: noise grows with 1.2^octave.
+      const auto coarse = octave_of_.find(points_[i].instance);
+      const int octave = coarse == octave_of_.end() ? 0 : coarse->second;
+      const double noise_scale = std::pow(1.2, octave);
+      const Eigen::Vector2d pixel = kFocal * p_c.head<2>() / p_c.z() +
+                                    Eigen::Vector2d(320.0 + noise_scale * pixel_noise(rng_),
+                                                    240.0 + noise_scale * pixel_noise(rng_));
       if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() >= kWidth || pixel.y() >= kHeight) continue;
       features::Keypoint keypoint;
       keypoint.pixel = pixel;
       keypoint.class_id = points_[i].class_id;
+      keypoint.octave = octave;
       const auto renamed = relabel_.find(points_[i].instance);
       keypoint.instance_id = renamed == relabel_.end() ? points_[i].instance : renamed->second;
       frame.features.keypoints.push_back(keypoint);
@@ -161,6 +169,7 @@ class Scene {
   std::mt19937_64 rng_;
   std::vector<ScenePoint> points_;
   std::map<int, int> relabel_;
+  std::map<int, int> octave_of_;
   std::map<int, std::vector<std::size_t>> unlabelled_;
 };
 
@@ -404,6 +413,32 @@ TEST(MovingObjectDetectorTest, TheGeometricTestDropsAnUnlabelledMover) {
       EXPECT_EQ(report.geometric_dropped, 0);
     }
     EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kStatic);
+  }
+}
+
+TEST(MovingObjectDetectorTest, CoarseOctaveKeypointsAreJudgedInTheirOwnUnits) {
+  // The parked car is seen only at octave 6 (1.2^6 = 3x the position noise of level 0), the
+  // background at level 0: compared in pixels its residuals exceed a level-0 threshold.
+  for (const double scale_factor : {1.0, 1.2}) {
+    Scene scene(11);
+    scene.setOctave(1, 6);
+    MovingObjectOptions options = geometric();
+    options.baseline_frames = 1;
+    MovingObjectDetector detector(options, camera(), scale_factor);
+    std::vector<SyntheticFrame> frames{scene.observe(cameraPose(0), frameTime(0))};
+    detector.detect(nullptr, frames[0].view(), SE3d());
+    int moving = 0;
+    for (int k = 1; k <= 6; ++k) {
+      frames.push_back(scene.observe(cameraPose(k), frameTime(k)));
+      const MovingObjectReport report =
+          detectAfter(detector, frames[k - 1], frames[k], curFromPrev(k));
+      moving += decisionOf(report, 1).decision == ObjectState::kMoving;
+    }
+    if (scale_factor > 1.0) {
+      EXPECT_EQ(moving, 0) << "octave-scaled";
+    } else {
+      EXPECT_GE(moving, 1) << "in pixels";
+    }
   }
 }
 
