@@ -251,8 +251,9 @@ class RunCommand : public Command {
                    "keypoints with the sequence's instance masks (simulated sequences: "
                    "mav0/camN/mask/ and instances.csv)");
     sub_->add_option("--overlay", overlay_dir_,
-                     "Write overlay PNGs (left image, instance masks, keypoints coloured by "
-                     "class) into this folder");
+                     "Write overlay PNGs into this folder: left image, instance masks, keypoints "
+                     "coloured by class; with the moving-object test on, only the moving "
+                     "objects' masks and the keypoints kept (green) or dropped (red)");
     sub_->add_option("--overlay-every", overlay_every_, "Overlay every N-th frame")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();

@@ -68,4 +68,9 @@ std::string formatNsAsSeconds(TimeNs t_ns) {
                      magnitude % kNsPerSecond);
 }
 
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
 }  // namespace superdyna

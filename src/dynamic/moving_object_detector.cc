@@ -324,15 +324,13 @@ std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<
                                                               const Thresholds& thresholds,
                                                               MovingObjectReport& report) const {
   const cv::Size size = current.features->image_size;
-  const int cell = options_.geometric_cell_px;
-  const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
-  std::vector<int> outliers(static_cast<std::size_t>(cols * rows), 0);
+  std::vector<int> outliers(cellCount(size), 0);
   std::vector<int> tested(outliers.size(), 0);
   for (const Link& link : background) {
     const auto result = linkResidual(link, current, T_cur_prev, thresholds);
     if (!result) continue;
-    const std::size_t k = cellOf(
-        current.features->keypoints[static_cast<std::size_t>(link.current)].pixel, cols, rows);
+    const std::size_t k =
+        cellOf(current.features->keypoints[static_cast<std::size_t>(link.current)].pixel, size);
     ++tested[k];
     if (result->first > options_.geometric_threshold_factor * result->second) ++outliers[k];
   }
@@ -345,11 +343,21 @@ std::vector<char> MovingObjectDetector::movingBackgroundCells(const std::vector<
   return moving;
 }
 
-std::size_t MovingObjectDetector::cellOf(const Eigen::Vector2d& pixel, int cols, int rows) const {
+cv::Size MovingObjectDetector::cellGrid(cv::Size image_size) const {
   const int cell = options_.geometric_cell_px;
-  const int c = std::clamp(static_cast<int>(pixel.x()) / cell, 0, cols - 1);
-  const int r = std::clamp(static_cast<int>(pixel.y()) / cell, 0, rows - 1);
-  return static_cast<std::size_t>(r * cols + c);
+  return {(image_size.width + cell - 1) / cell, (image_size.height + cell - 1) / cell};
+}
+
+std::size_t MovingObjectDetector::cellCount(cv::Size image_size) const {
+  return static_cast<std::size_t>(cellGrid(image_size).area());
+}
+
+std::size_t MovingObjectDetector::cellOf(const Eigen::Vector2d& pixel, cv::Size image_size) const {
+  const int cell = options_.geometric_cell_px;
+  const cv::Size grid = cellGrid(image_size);
+  const int c = std::clamp(static_cast<int>(pixel.x()) / cell, 0, grid.width - 1);
+  const int r = std::clamp(static_cast<int>(pixel.y()) / cell, 0, grid.height - 1);
+  return static_cast<std::size_t>(r * grid.width + c);
 }
 
 std::map<int, int> MovingObjectDetector::associateTracks(
@@ -458,13 +466,10 @@ void MovingObjectDetector::dropKeypoints(const std::map<int, ObjectDecision>& ob
                                          MovingObjectReport& report) const {
   const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
   const cv::Size size = current.features->image_size;
-  const int cell = options_.geometric_cell_px;
-  const int cols = (size.width + cell - 1) / cell, rows = (size.height + cell - 1) / cell;
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
-    const bool drop =
-        isMovable(keypoints[i])
-            ? objects.at(keypoints[i].instance_id).dropped
-            : !moving_cells.empty() && moving_cells[cellOf(keypoints[i].pixel, cols, rows)];
+    const bool drop = isMovable(keypoints[i])
+                          ? objects.at(keypoints[i].instance_id).dropped
+                          : !moving_cells.empty() && moving_cells[cellOf(keypoints[i].pixel, size)];
     if (!drop) continue;
     report.drop[i] = 1;
     ++report.dropped;

@@ -3,20 +3,18 @@
 #include <fmt/format.h>
 
 #include "superdyna/core/error.h"
+#include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::system {
 
 namespace {
 
-const char* className(int class_id) {
-  switch (class_id) {
-    case features::kClassVehicle:
-      return "vehicle";
-    case features::kClassPedestrian:
-      return "pedestrian";
-    default:
-      return "other";
-  }
+/// The log's class column: the class table's name for vehicles and pedestrians, "other" for any
+/// other movable class.
+std::string_view className(int class_id) {
+  return class_id == sensors::kInstanceClassVehicle || class_id == sensors::kInstanceClassPedestrian
+             ? sensors::instanceClassName(class_id)
+             : std::string_view("other");
 }
 
 }  // namespace

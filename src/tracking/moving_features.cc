@@ -4,6 +4,7 @@
 #include <chrono>
 #include <set>
 
+#include "superdyna/core/time.h"
 #include "superdyna/tracking/tracker.h"
 
 namespace superdyna::tracking {
@@ -49,8 +50,7 @@ Frame Tracker::removeMovingFeatures(const Frame& frame, const Prediction& predic
     }
   }
   Frame without = frame.withoutKeypoints(result.moving.drop, &kept);
-  result.times.moving_objects_ms =
-      std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+  result.times.moving_objects_ms = millisecondsSince(start);
   return without;
 }
 

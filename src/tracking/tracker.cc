@@ -33,10 +33,6 @@ features::ProjectionMatchOptions withRadius(features::ProjectionMatchOptions opt
   return options;
 }
 
-double millisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
 }  // namespace
 
 void TrackerOptions::validate() const {

@@ -2,6 +2,7 @@
 // Time is an int64 count of nanoseconds everywhere (`t_ns`). Conversions from decimal seconds are
 // exact (parsed from the text, not through a double), so TUM and EuRoC timestamps round-trip.
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -27,6 +28,9 @@ std::optional<TimeNs> parseSecondsToNs(std::string_view text);
 
 /// Formats nanoseconds as seconds with exactly nine decimals ("1403636580.838560000").
 std::string formatNsAsSeconds(TimeNs t_ns);
+
+/// Wall-clock milliseconds since `start` (stage timings).
+double millisecondsSince(std::chrono::steady_clock::time_point start);
 
 /// Half-open time interval [begin, end] of a data stream (both ends inclusive, as the samples).
 struct TimeRange {

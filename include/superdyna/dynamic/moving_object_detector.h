@@ -224,7 +224,11 @@ class MovingObjectDetector {
                                           const FrameObservations& current, const SE3d& T_cur_prev,
                                           const Thresholds& thresholds,
                                           MovingObjectReport& report) const;
-  std::size_t cellOf(const Eigen::Vector2d& pixel, int cols, int rows) const;
+  /// The geometric test's cells (geometric_cell_px) over an image: columns x rows, their number,
+  /// and the row-major index of a pixel's cell (pixels outside fall into the border cells).
+  cv::Size cellGrid(cv::Size image_size) const;
+  std::size_t cellCount(cv::Size image_size) const;
+  std::size_t cellOf(const Eigen::Vector2d& pixel, cv::Size image_size) const;
   void dropKeypoints(const std::map<int, ObjectDecision>& objects,
                      const std::vector<char>& moving_cells, const FrameObservations& current,
                      MovingObjectReport& report) const;
