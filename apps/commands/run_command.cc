@@ -186,7 +186,8 @@ bool sameFile(const fs::path& a, const fs::path& b) {
   return fs::weakly_canonical(fs::absolute(a)) == fs::weakly_canonical(fs::absolute(b));
 }
 
-void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::AlignmentMode align) {
+void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::AlignmentMode align,
+                   const std::string& what = "ATE") {
   if (gt.empty()) return;
   eval::EvaluationOptions options;
   options.align = align;
@@ -195,9 +196,9 @@ void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::Align
   try {
     const eval::EvaluationResult r = eval::evaluate(gt, estimate, options);
     fmt::print(
-        "ATE ({} aligned): rmse {:.4f} m, mean {:.4f} m, max {:.4f} m over {} poses; "
+        "{} ({} aligned): rmse {:.4f} m, mean {:.4f} m, max {:.4f} m over {} poses; "
         "ground-truth path {:.2f} m\n",
-        align == eval::AlignmentMode::kSim3 ? "Sim(3)" : "SE(3)", r.ate_trans.rmse,
+        what, align == eval::AlignmentMode::kSim3 ? "Sim(3)" : "SE(3)", r.ate_trans.rmse,
         r.ate_trans.mean, r.ate_trans.max, r.pairs, pathLength(gt));
   } catch (const std::exception& e) {
     fmt::print("ATE not available: {}\n", e.what());
@@ -223,6 +224,10 @@ class RunCommand : public Command {
     sub_->add_option("--keyframes", keyframes_,
                      "Keyframe trajectory file (same --format; default: <output "
                      "stem>_keyframes<output extension> beside --output)");
+    sub_->add_option("--online-trajectory", online_,
+                     "Also write each frame's pose as it was tracked at that frame (causal; "
+                     "--output holds each frame relative to its keyframe after the keyframes' "
+                     "later corrections)");
     sub_->add_option("--features", features_,
                      "Feature extractor: orb | xfeat | superpoint (overrides features.type)")
         ->check(CLI::IsMember({"orb", "xfeat", "superpoint"}));
@@ -277,6 +282,16 @@ class RunCommand : public Command {
     }
   }
 
+  void refuseOnlineTrajectoryPath(const fs::path& path, const fs::path& keyframes_path) const {
+    refuseOutputInsideDataset(path, "--online-trajectory");
+    for (const fs::path& other : {output_, keyframes_path}) {
+      if (sameFile(path, other)) {
+        throw OptionError("--online-trajectory",
+                          fmt::format("'{}' is also another output of the run", path.string()));
+      }
+    }
+  }
+
   fs::path keyFramesPath() const {
     const fs::path path = keyframes_ ? *keyframes_ : defaultKeyFramesPath(output_);
     if (sameFile(path, output_)) {
@@ -299,6 +314,7 @@ class RunCommand : public Command {
                                             other.string()));
     };
     refuseSame(keyframes_path, "--keyframes");
+    if (online_) refuseSame(*online_, "--online-trajectory");
     if (frame_log_) refuseSame(*frame_log_, "--frame-log");
     if (dynamic_log_) refuseSame(*dynamic_log_, "--dynamic-log");
     return path;
@@ -309,6 +325,7 @@ class RunCommand : public Command {
     const fs::path keyframes_path = keyFramesPath();
     refuseOutputInsideDataset(keyframes_path, "--keyframes");
     if (frame_log_) refuseOutputInsideDataset(*frame_log_, "--frame-log");
+    if (online_) refuseOnlineTrajectoryPath(*online_, keyframes_path);
     if (dynamic_log_) refuseOutputInsideDataset(*dynamic_log_, "--dynamic-log");
     const fs::path config_path = configPath(keyframes_path);
     system::SystemOptions options;
@@ -393,8 +410,10 @@ class RunCommand : public Command {
     });
     const system::TimingSummary& t = slam.timings();
     const Trajectory keyframes = slam.keyFrameTrajectory();
-    io::writeTrajectory(output_, slam.trajectory(), format);
+    const Trajectory trajectory = slam.trajectory();
+    io::writeTrajectory(output_, trajectory, format);
     io::writeTrajectory(keyframes_path, keyframes, format);
+    if (online_) io::writeTrajectory(*online_, slam.onlineTrajectory(), format);
     fmt::print(
         "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}; wrote {} and {} "
         "({} keyframes)\n",
@@ -412,10 +431,12 @@ class RunCommand : public Command {
                  t.meanMs(t.segment_ms));
     }
     printMatchCounts(slam);
-    printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSE3);
+    printAccuracy(source->groundTruth(), slam.onlineTrajectory(), eval::AlignmentMode::kSE3,
+                  "ATE of the poses as tracked");
+    printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSE3);
     // Visual-only monocular trajectories have no metric scale.
     if (options.mode == system::SensorMode::kMono) {
-      printAccuracy(source->groundTruth(), slam.trajectory(), eval::AlignmentMode::kSim3);
+      printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSim3);
     }
     return 0;
   }
@@ -428,6 +449,7 @@ class RunCommand : public Command {
   fs::path output_;
   std::optional<fs::path> keyframes_;
   std::optional<fs::path> frame_log_;
+  std::optional<fs::path> online_;
   std::optional<fs::path> dynamic_log_;
   std::optional<std::string> dynamic_;
   std::string format_ = "tum";

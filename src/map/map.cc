@@ -190,6 +190,7 @@ std::optional<std::vector<MapPointId>> Map::eraseKeyFrame(KeyFrameId id) {
   const std::lock_guard lock(mutex_);
   KeyFrame* keyframe = findKeyFrame(id);
   if (keyframe == nullptr) return std::nullopt;
+  anchorErasedKeyFrame(*keyframe);  // while its covisibility edges are still there
   std::vector<MapPointId> orphans;
   for (const MapPointId point_id : std::vector<MapPointId>(keyframe->map_points)) {
     if (point_id == kNoMapPoint) continue;
@@ -203,6 +204,27 @@ std::optional<std::vector<MapPointId>> Map::eraseKeyFrame(KeyFrameId id) {
   keyframes_.erase(id);
   std::sort(orphans.begin(), orphans.end());
   return orphans;
+}
+
+void Map::anchorErasedKeyFrame(const KeyFrame& erased) {
+  KeyFrameId anchor = kNoKeyFrame;
+  int best_weight = 0;
+  // The row is ordered by id: ties go to the oldest keyframe, the same in every run.
+  for (const auto& [other, weight] : covisibility_[erased.id]) {
+    if (weight > best_weight) {
+      best_weight = weight;
+      anchor = other;
+    }
+  }
+  if (anchor == kNoKeyFrame && erased.previous != kNoKeyFrame) anchor = erased.previous;
+  if (anchor == kNoKeyFrame) {
+    for (const auto& [other_id, other] : keyframes_)
+      if (other.previous == erased.id) anchor = other_id;
+  }
+  if (anchor == kNoKeyFrame) return;  // the map's only keyframe: nothing to follow
+  const SE3d& T_b_c = options_.T_b_c.front();
+  const SE3d T_w_ca = keyframes_.at(anchor).T_w_b * T_b_c;
+  erased_[erased.id] = {anchor, T_w_ca.inverse() * (erased.T_w_b * T_b_c)};
 }
 
 void Map::relinkSuccessor(const KeyFrame& erased) {
@@ -299,6 +321,8 @@ void Map::transformWorld(const Sim3d& S_new_old) {
     keyframe.T_w_b = (S_new_old * (keyframe.T_w_b * T_b_c)) * T_c_b;
     keyframe.v_w = S_new_old.s * (S_new_old.R * keyframe.v_w);
   }
+  for (auto& [id, erased] : erased_)
+    erased.T_ca_c.t *= S_new_old.s;  // relative: scale only
   for (auto& [id, point] : points_) {
     point.p_w = S_new_old * point.p_w;
     point.normal_w = S_new_old.R * point.normal_w;
@@ -485,6 +509,29 @@ std::optional<SE3d> Map::keyFramePose(KeyFrameId id) const {
   const auto it = keyframes_.find(id);
   if (it == keyframes_.end()) return std::nullopt;
   return it->second.T_w_b;
+}
+
+std::optional<SE3d> Map::resolvedKeyFramePose(KeyFrameId id) const {
+  const std::lock_guard lock(mutex_);
+  return resolvePoseLocked(id);
+}
+
+std::optional<SE3d> Map::resolvePoseLocked(KeyFrameId id) const {
+  if (const auto it = keyframes_.find(id); it != keyframes_.end()) return it->second.T_w_b;
+  // Anchors were alive when their keyframe was erased, so each chain ends at a living keyframe
+  // (or at one erased without an anchor) after at most as many steps as keyframes were erased.
+  SE3d T_c_chain;  // the erased keyframe's camera in the current anchor's camera
+  KeyFrameId current = id;
+  while (true) {
+    const auto erased = erased_.find(current);
+    if (erased == erased_.end()) return std::nullopt;
+    T_c_chain = erased->second.T_ca_c * T_c_chain;
+    current = erased->second.anchor;
+    if (const auto it = keyframes_.find(current); it != keyframes_.end()) {
+      const SE3d& T_b_c = options_.T_b_c.front();
+      return (it->second.T_w_b * T_b_c) * T_c_chain * T_b_c.inverse();
+    }
+  }
 }
 
 std::optional<Eigen::Vector3d> Map::mapPointPosition(MapPointId id) const {

@@ -114,17 +114,51 @@ System::~System() {
 
 void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
   if (result.world_change) {
-    for (std::size_t i = map_start_; i < trajectory_.size(); ++i) {
-      trajectory_[i].T_w_x =
-          mapping::transformBodyPose(*result.world_change, trajectory_[i].T_w_x, tracker_.T_b_c0());
+    for (std::size_t i = map_start_; i < frames_.size(); ++i) {
+      FrameRecord& frame = frames_[i];
+      frame.online.T_w_x =
+          mapping::transformBodyPose(*result.world_change, frame.online.T_w_x, tracker_.T_b_c0());
+      frame.T_cr_c.t *= result.world_change->s;  // relative camera poses: the map's scale only
     }
   }
-  if (result.state == tracking::TrackingState::kInitialized) map_start_ = trajectory_.size();
+  if (result.state == tracking::TrackingState::kInitialized) map_start_ = frames_.size();
   if (result.state == tracking::TrackingState::kInitializing) {
     ++initializing_frames_;
-  } else {
-    trajectory_.push_back({t_ns, result.T_w_b});
+    return;
   }
+  FrameRecord frame{{t_ns, result.T_w_b}, tracker_.resets(), result.reference, {}};
+  if (result.reference != map::kNoKeyFrame) {
+    const SE3d& T_b_c = tracker_.T_b_c0();
+    frame.T_cr_c = (result.T_w_reference * T_b_c).inverse() * (result.T_w_b * T_b_c);
+  }
+  frames_.push_back(frame);
+}
+
+Trajectory System::trajectory() const {
+  Trajectory trajectory;
+  trajectory.reserve(frames_.size());
+  const int current = tracker_.resets();
+  const SE3d& T_b_c = tracker_.T_b_c0();
+  for (const FrameRecord& frame : frames_) {
+    std::optional<SE3d> T_w_reference;
+    if (frame.reference != map::kNoKeyFrame && frame.generation == current && tracker_.hasMap())
+      T_w_reference = tracker_.map().resolvedKeyFramePose(frame.reference);
+    if (!T_w_reference) {
+      trajectory.push_back(frame.online);
+      continue;
+    }
+    const SE3d T_w_c = (*T_w_reference * T_b_c) * frame.T_cr_c;
+    trajectory.push_back({frame.online.t_ns, T_w_c * T_b_c.inverse()});
+  }
+  return trajectory;
+}
+
+Trajectory System::onlineTrajectory() const {
+  Trajectory trajectory;
+  trajectory.reserve(frames_.size());
+  for (const FrameRecord& frame : frames_)
+    trajectory.push_back(frame.online);
+  return trajectory;
 }
 
 sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {

@@ -222,6 +222,7 @@ TrackingResult Tracker::track(const Frame& input) {
   const Frame& frame = without_moving ? *without_moving : input;
   if (!has_map_ && isMonocular()) {
     initializeMono(frame, result);
+    if (result.state == TrackingState::kInitialized) noteReference(result);
     result.times.track_ms = millisecondsSince(start);
     rememberFrame(input, kept, {});
     if (result.state == TrackingState::kInitialized) return result;  // motion set by the init
@@ -230,6 +231,7 @@ TrackingResult Tracker::track(const Frame& input) {
   }
   if (!has_map_) {
     initializeAt(frame, initialPose(frame, prediction.T_w_b), result);
+    if (result.state == TrackingState::kInitialized) noteReference(result);
     result.times.track_ms = millisecondsSince(start);
     rememberFrame(input, kept, {});
     updateMotion(result.T_w_b, frame.t_ns);
@@ -249,9 +251,12 @@ TrackingResult Tracker::track(const Frame& input) {
     t_tracked_ns_ = frame.t_ns;
     wants_keyframe = needKeyFrame(frame, result.inliers);
   }
+  if (has_map_) noteReference(result);
   reading.unlock();  // a new keyframe is submitted to (and may wait for) the mapping thread
   if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
     addKeyFrameAndMap(frame, tracked, prediction, result);
+    result.reference = reference_;  // the frame itself: its pose is the keyframe's
+    result.T_w_reference = result.T_w_b;
   }
   rememberFrame(input, kept, has_map_ ? tracked : std::vector<map::MapPointId>{});
   updateMotion(result.T_w_b, frame.t_ns);
@@ -535,6 +540,13 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   bias_ = {};
   insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   has_map_ = true;
+}
+
+void Tracker::noteReference(TrackingResult& result) const {
+  if (const auto T_w_reference = map_->keyFramePose(reference_)) {
+    result.reference = reference_;
+    result.T_w_reference = *T_w_reference;
+  }
 }
 
 std::set<map::MapPointId> Tracker::localPointIds() const {

@@ -101,6 +101,17 @@ grep -q "^effective options (written to $work/a_config.yaml):" "$work/run_a.txt"
   --config "$work/a_config.yaml" --output "$work/b.txt" >/dev/null
 cmp "$work/a.txt" "$work/b.txt" || { echo "reloaded options changed the trajectory"; exit 1; }
 cmp "$work/a_config.yaml" "$work/b_config.yaml" || { echo "reloaded options differ"; exit 1; }
+# --online-trajectory writes the poses as tracked beside the keyframe-relative ones, never over
+# another output of the run.
+"$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial --deterministic \
+  --output "$work/c.txt" --online-trajectory "$work/c_online.txt" | tee "$work/run_c.txt" >/dev/null
+[ "$(wc -l <"$work/c_online.txt")" -eq "$(wc -l <"$work/c.txt")" ] ||
+  { echo "online and reported trajectories differ in length"; exit 1; }
+grep -q "^ATE of the poses as tracked (SE(3) aligned): rmse" "$work/run_c.txt" ||
+  { echo "run did not print the ATE of the online poses"; exit 1; }
+expect_failure "option '--online-trajectory': '$work/c.txt' is also another output of the run" \
+  "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo --output "$work/c.txt" \
+  --online-trajectory "$work/c.txt"
 cp "$work/a_config.yaml" "$work/a_config_copy.yaml"
 expect_failure "is an input file; refusing to overwrite it" \
   "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial \

@@ -548,3 +548,72 @@ TEST(ViewingLimits, SingleScalePointsAndPointsWithoutNormalAreNotBounded) {
 
 }  // namespace
 }  // namespace superdyna::map
+
+namespace superdyna::map {
+namespace {
+
+SE3d poseAt(double yaw_rad, const Eigen::Vector3d& t) {
+  return SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ())), t);
+}
+
+bool samePose(const SE3d& a, const SE3d& b) {
+  return a.t.isApprox(b.t, 1e-12) && a.q.angularDistance(b.q) < 1e-12;
+}
+
+// kf1 shares 3 points with kf0 and 4 with kf2: erased, it follows kf2 (its best covisible one).
+TEST_F(ThreeKeyFrameMap, AnErasedKeyFrameFollowsTheLaterCorrectionsOfItsAnchor) {
+  ASSERT_TRUE(map.setKeyFramePose(kf[1], poseAt(0.1, {1, 0, 0})));
+  ASSERT_TRUE(map.setKeyFramePose(kf[2], poseAt(0.2, {2, 0, 0})));
+  const SE3d T_2_1 = map.keyFramePose(kf[2])->inverse() * *map.keyFramePose(kf[1]);
+  ASSERT_TRUE(map.eraseKeyFrame(kf[1]));
+  EXPECT_FALSE(map.keyFramePose(kf[1]));
+  // Correct kf2: the erased keyframe moves with it; kf0 moving does not move it.
+  const SE3d corrected = poseAt(0.3, {2.5, -1, 0.2});
+  ASSERT_TRUE(map.setKeyFramePose(kf[2], corrected));
+  ASSERT_TRUE(map.setKeyFramePose(kf[0], poseAt(-0.4, {9, 9, 9})));
+  EXPECT_TRUE(samePose(*map.resolvedKeyFramePose(kf[1]), corrected * T_2_1));
+  EXPECT_TRUE(samePose(*map.resolvedKeyFramePose(kf[2]), corrected));
+  EXPECT_FALSE(map.resolvedKeyFramePose(42));
+}
+
+TEST_F(ThreeKeyFrameMap, ErasedKeyFramesResolveThroughAChainOfAnchors) {
+  ASSERT_TRUE(map.setKeyFramePose(kf[1], poseAt(0.1, {1, 0, 0})));
+  ASSERT_TRUE(map.setKeyFramePose(kf[2], poseAt(0.2, {2, 0, 0})));
+  const SE3d T_w_1 = *map.keyFramePose(kf[1]);
+  const SE3d T_w_2 = *map.keyFramePose(kf[2]);
+  ASSERT_TRUE(map.eraseKeyFrame(kf[1]));  // anchored to kf2
+  ASSERT_TRUE(map.eraseKeyFrame(kf[2]));  // anchored to kf0 (shares p5), the last one left
+  const SE3d moved = poseAt(0.5, {0, 3, 0});
+  ASSERT_TRUE(map.setKeyFramePose(kf[0], moved));
+  EXPECT_TRUE(samePose(*map.resolvedKeyFramePose(kf[2]), moved * T_w_2));
+  EXPECT_TRUE(samePose(*map.resolvedKeyFramePose(kf[1]), moved * T_w_1));
+}
+
+// The anchor relation is kept between cameras: a change of the world with scale (the monocular
+// inertial initialisation) moves an erased keyframe exactly as it moves a living one.
+TEST(MapTest, AnErasedKeyFrameFollowsAScaledChangeOfTheWorld) {
+  MapOptions options;
+  options.T_b_c = {poseAt(0.3, {0.05, -0.02, 0.01})};
+  Map map(options);
+  const SE3d T_w_a = poseAt(0.1, {1, 2, 0});
+  const SE3d T_w_e = poseAt(-0.2, {1.5, 2.2, 0.1});
+  const KeyFrameId anchor = map.addKeyFrame(makeKeyFrame(1, T_w_a));
+  const KeyFrameId erased = map.addKeyFrame(makeKeyFrame(1, T_w_e));
+  const MapPointId shared = map.addMapPoint(makePoint({0, 0, 5}));
+  ASSERT_TRUE(map.addObservation(shared, anchor, 0));
+  ASSERT_TRUE(map.addObservation(shared, erased, 0));
+  ASSERT_TRUE(map.eraseKeyFrame(erased));
+  Sim3d S;
+  S.s = 2.5;
+  S.R = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  S.t = Eigen::Vector3d(0.3, 0, -1);
+  map.transformWorld(S);
+  const SE3d& T_b_c = options.T_b_c.front();
+  const SE3d expected = (S * (T_w_e * T_b_c)) * T_b_c.inverse();
+  const SE3d resolved = *map.resolvedKeyFramePose(erased);
+  EXPECT_LT((resolved.t - expected.t).norm(), 1e-12);
+  EXPECT_LT(resolved.q.angularDistance(expected.q), 1e-12);
+}
+
+}  // namespace
+}  // namespace superdyna::map

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -431,15 +432,50 @@ SystemOptions concurrentOptions() {
 /// Each keyframe time is a frame time, in order, and the keyframes are those tracking reported.
 void expectKeyFramesMatchFrames(const System& slam) {
   const Trajectory keyframes = slam.keyFrameTrajectory();
+  const Trajectory frames = slam.trajectory();
   EXPECT_EQ(keyframes.size(), slam.timings().keyframes);
   std::size_t frame = 0;
   for (const StampedPose& kf : keyframes) {
-    while (frame < slam.trajectory().size() && slam.trajectory()[frame].t_ns < kf.t_ns)
+    while (frame < frames.size() && frames[frame].t_ns < kf.t_ns)
       ++frame;
-    ASSERT_LT(frame, slam.trajectory().size());
-    EXPECT_EQ(slam.trajectory()[frame].t_ns, kf.t_ns);
+    ASSERT_LT(frame, frames.size());
+    EXPECT_EQ(frames[frame].t_ns, kf.t_ns);
     EXPECT_TRUE(kf.T_w_x.t.allFinite());
   }
+}
+
+/// The entry of `trajectory` at time t_ns (which must be there).
+const StampedPose& poseAtTime(const Trajectory& trajectory, TimeNs t_ns) {
+  const auto it = std::lower_bound(trajectory.begin(), trajectory.end(), t_ns,
+                                   [](const StampedPose& pose, TimeNs t) { return pose.t_ns < t; });
+  if (it == trajectory.end() || it->t_ns != t_ns) throw std::runtime_error("no pose at that time");
+  return *it;
+}
+
+// As ORB-SLAM reports its frames: a frame's pose follows the later corrections (local BA) of the
+// keyframe it was tracked against, so a keyframe's own frame ends at that keyframe's final pose
+// and not at the pose tracking gave it.
+TEST(StereoInertialSlam, FramesAreReportedThroughTheirKeyFramesFinalPoses) {
+  const auto source = openSynthetic(60, shortSequence());
+  SystemOptions options;
+  options.mode = SensorMode::kStereoInertial;
+  System slam(options, source->camera0(), *source->camera1(), source->imu());
+  slam.run(*source);
+  ASSERT_EQ(slam.resets(), 0);
+  const Trajectory frames = slam.trajectory();
+  const Trajectory online = slam.onlineTrajectory();
+  ASSERT_EQ(frames.size(), online.size());
+  double moved_m = 0.0;  // how far local BA moved the keyframes after tracking
+  std::size_t keyframes = 0;
+  for (const StampedPose& kf : slam.keyFrameTrajectory()) {
+    const StampedPose& reported = poseAtTime(frames, kf.t_ns);
+    EXPECT_LT((reported.T_w_x.t - kf.T_w_x.t).norm(), 1e-9);
+    EXPECT_LT(reported.T_w_x.q.angularDistance(kf.T_w_x.q), 1e-9);
+    moved_m = std::max(moved_m, (poseAtTime(online, kf.t_ns).T_w_x.t - kf.T_w_x.t).norm());
+    ++keyframes;
+  }
+  EXPECT_GE(keyframes, 5u);
+  EXPECT_GT(moved_m, 1e-4) << "local BA should have moved some keyframe after it was tracked";
 }
 
 TEST(StereoSlam, RunMatchesFrameByFrameProcessing) {

@@ -204,6 +204,13 @@ class Map {
   std::optional<KeyFrame> keyFrame(KeyFrameId id) const;
   std::optional<MapPoint> mapPoint(MapPointId id) const;
   std::optional<SE3d> keyFramePose(KeyFrameId id) const;
+  /// The pose of a keyframe of the map, or of one erased from it since: eraseKeyFrame keeps an
+  /// erased keyframe as its camera pose relative to an anchor keyframe (its best covisible one,
+  /// else its temporal predecessor or successor), so that it follows every later correction of
+  /// the anchor (ORB-SLAM keeps a culled keyframe relative to its spanning-tree parent for the
+  /// same reason: frames tracked against it are reported through it). nullopt for an id the map
+  /// never had, or an erased keyframe that had no keyframe left to anchor it.
+  std::optional<SE3d> resolvedKeyFramePose(KeyFrameId id) const;
   std::optional<Eigen::Vector3d> mapPointPosition(MapPointId id) const;
 
   /// Calls fn(const KeyFrame&) under the map's lock, without copying; false when the id is
@@ -255,6 +262,9 @@ class Map {
   void detachAllObservations(MapPoint& point);
   /// Gives the successor of `erased` (if any) its predecessor and merged IMU samples.
   void relinkSuccessor(const KeyFrame& erased);
+  /// Remembers an erased keyframe relative to its anchor (resolvedKeyFramePose).
+  void anchorErasedKeyFrame(const KeyFrame& erased);
+  std::optional<SE3d> resolvePoseLocked(KeyFrameId id) const;
   void addCovisibility(KeyFrameId a, KeyFrameId b, int delta);
   std::unordered_map<KeyFrameId, CovisibilityRow> rebuildCovisibility() const;
   std::string observationError() const;
@@ -268,6 +278,12 @@ class Map {
   std::unordered_map<MapPointId, MapPoint> points_;
   /// covisibility_[a][b] = points shared by a and b (> 0); symmetric; one row per keyframe.
   std::unordered_map<KeyFrameId, CovisibilityRow> covisibility_;
+  /// An erased keyframe: the camera pose T_anchor_c of its left camera in the anchor's.
+  struct ErasedKeyFrame {
+    KeyFrameId anchor = kNoKeyFrame;
+    SE3d T_ca_c;
+  };
+  std::unordered_map<KeyFrameId, ErasedKeyFrame> erased_;
   KeyFrameId next_keyframe_id_ = 0;
   KeyFrameId newest_keyframe_ = kNoKeyFrame;
   MapPointId next_point_id_ = 0;

@@ -147,7 +147,15 @@ class System {
   void setFrontEndCallback(FrontEndCallback callback) { front_end_callback_ = std::move(callback); }
 
   const SystemOptions& options() const { return options_; }
-  const Trajectory& trajectory() const { return trajectory_; }
+  /// Every recorded frame's pose as it is now: a frame tracked on the current map follows the
+  /// later corrections of the keyframe it was tracked against (its pose relative to that keyframe
+  /// is kept; an erased keyframe is resolved through its anchor, map::Map::resolvedKeyFramePose),
+  /// as ORB-SLAM reports its frames; frames of maps dropped at resets, and frames tracked on no
+  /// map, keep their poses as tracked. Call after finish() for the final poses.
+  Trajectory trajectory() const;
+  /// Every recorded frame's pose as the tracker reported it at that frame (causal: no later
+  /// correction, apart from changes of the world frame such as the inertial initialisation's).
+  Trajectory onlineTrajectory() const;
   /// Keyframes in time order: those of the current map with their latest (local-BA refined)
   /// poses, those of maps dropped at resets with their poses at insertion. Call after finish() for
   /// the final poses.
@@ -195,14 +203,22 @@ class System {
   tracking::Tracker tracker_;
   /// Declared after tracker_ (destroyed first): its jobs use the tracker.
   std::unique_ptr<MappingWorker> mapping_;
-  Trajectory trajectory_;
+  /// A recorded frame: its pose as tracked, and its left camera's pose in the camera of the
+  /// keyframe it was tracked against (reference kNoKeyFrame: none).
+  struct FrameRecord {
+    StampedPose online;
+    int generation = 0;
+    map::KeyFrameId reference = map::kNoKeyFrame;
+    SE3d T_cr_c;
+  };
+  std::vector<FrameRecord> frames_;
   std::vector<InsertedKeyFrame> keyframes_;
   TimingSummary timings_;
   double mapping_wall_ms_ = 0.0;  ///< Mapping thread's job time already in timings_.
   std::size_t lost_frames_ = 0;
   std::size_t reference_frames_ = 0;
   std::size_t initializing_frames_ = 0;
-  std::size_t map_start_ = 0;  ///< First trajectory entry estimated on the current map.
+  std::size_t map_start_ = 0;  ///< First frames_ entry estimated on the current map.
 };
 
 }  // namespace superdyna::system

@@ -153,6 +153,11 @@ struct TrackingResult {
   /// (reference_matching.h).
   bool from_reference = false;
   bool keyframe = false;
+  /// The keyframe the pose was estimated against (the frame's own when it became one) and its
+  /// pose at that moment, kNoKeyFrame when the frame was not tracked on a map: the frame's pose
+  /// relative to it follows the keyframe's later corrections (System::trajectory).
+  map::KeyFrameId reference = map::kNoKeyFrame;
+  SE3d T_w_reference;
   /// Set when the world frame of the current map changed at this frame (inertial initialisation:
   /// gravity alignment; mono-inertial: scale too): poses reported earlier on this map map into the
   /// new frame by mapping::transformBodyPose.
@@ -283,6 +288,8 @@ class Tracker {
                          const Prediction& prediction, TrackingResult& result);
   /// The points of the reference keyframe and its best covisible keyframes.
   std::set<map::MapPointId> localPointIds() const;
+  /// Sets result.reference to the reference keyframe with its current pose (read-locked map).
+  void noteReference(TrackingResult& result) const;
   std::vector<LocalPoint> localPoints() const;
   /// Culls the local map's points on the instances the moving-object test found moving
   /// (dynamic.cull_points_by_instance); returns how many.
