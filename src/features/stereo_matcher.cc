@@ -133,6 +133,9 @@ void StereoMatchOptions::validate() const {
   requireAngleTolerance(max_angle_difference_deg);
   if (!(min_depth_m > 0.0)) throw OptionError("min_depth_m", "must be > 0");
   if (!(max_depth_m > min_depth_m)) throw OptionError("max_depth_m", "must be > min_depth_m");
+  if (!(refine_max_shift > 0.0 && refine_max_shift <= 1.0)) {
+    throw OptionError("refine_max_shift", "must be in (0, 1]");
+  }
 }
 
 StereoMatcher::StereoMatcher(const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
@@ -344,7 +347,9 @@ std::optional<StereoMatch> StereoMatcher::refined(const StereoMatch& match,
   if (!at || !nearer || !windowFits(right_image, *at, search_px)) return match;
   const Eigen::Vector2d step = (*at - *nearer).normalized();  // towards smaller disparity
   const auto offset = sadMinimumAlong(left_image, centre, right_image, *at, step, search_px);
-  if (!offset) return match;
+  // A minimum far out in the search is more often another repetition of the texture or the far
+  // side of a depth edge than the keypoints' point (measured: see refine_max_shift).
+  if (!offset || std::abs(*offset) > options_.refine_max_shift * search_px) return match;
   const Eigen::Vector2d right_centre = *at + *offset * step;
   const auto f_right = camera1_.unproject(right_centre);
   if (!f_right) return std::nullopt;

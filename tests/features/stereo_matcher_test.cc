@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
@@ -597,6 +598,44 @@ TEST_F(SyntheticStereoTest, ImageRefinementRemovesTheCoarseOctaveDisparityBias) 
   EXPECT_GT(coarse.size(), 60u);
   EXPECT_LT(std::abs(mean(far)), 0.1);
   EXPECT_LT(std::abs(mean(coarse)), 0.15);
+}
+
+// The SAD search spans ceil(1.2^octave) + 1 px either side of the descriptor match; a minimum
+// beyond stereo.refine_max_shift of it keeps the match where the keypoints put it.
+TEST_F(SyntheticStereoTest, ImageRefinementMovesMatchesAtMostItsMaximumShift) {
+  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const cv::Mat left_image = io::loadImage(frame_.cam0, cam0);
+  const cv::Mat right_image = io::loadImage(frame_.cam1, cam1);
+  OrbExtractor extractor;
+  const FeatureSet left = extractor.extract(left_image);
+  const FeatureSet right = extractor.extract(right_image);
+  // The largest change of a match's disparity by the refinement, in units of its search.
+  const auto largestShift = [&](double max_shift) {
+    StereoMatchOptions options;
+    options.refine_max_shift = max_shift;
+    const StereoMatcher matcher(cam0, cam1, options);
+    std::map<int, double> unrefined;  // disparity [px] by left keypoint
+    for (const StereoMatch& m : matcher.match(left, right))
+      unrefined[m.left] = cam0.fx * baseline_m_ / m.depth_m;
+    double largest = 0.0;
+    for (const StereoMatch& m : matcher.match(left, right, left_image, right_image, 1.2)) {
+      const int octave = left.keypoints[static_cast<std::size_t>(m.left)].octave;
+      const double search = std::ceil(std::pow(1.2, std::max(0, octave))) + 1.0;
+      // Less the up to half a pixel by which the window centre (the rounded left pixel) moves
+      // the start of the search.
+      const double disparity = cam0.fx * baseline_m_ / m.depth_m;
+      const double shift = std::abs(disparity - unrefined.at(m.left)) - 0.5;
+      largest = std::max(largest, shift / search);
+    }
+    return largest;
+  };
+  const double bounded = largestShift(0.5);
+  const double free = largestShift(1.0);
+  std::cout << "largest refinement shift / search: " << bounded << " (refine_max_shift 0.5), "
+            << free << " (1.0)\n";
+  EXPECT_LE(bounded, 0.5 + 1e-6);
+  EXPECT_GT(free, 0.6);
 }
 
 TEST_F(SyntheticStereoTest, ImageRefinementChecksItsInputs) {
