@@ -204,6 +204,16 @@ void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::Align
   }
 }
 
+/// One line per IMU gap the tracker met (tracker.imu_max_gap_s), with the dataset times [ns].
+void reportImuGap(const tracking::ImuGap& gap, TimeNs frame_t_ns, double max_gap_s) {
+  fmt::print(
+      "warning: IMU gap of {:.3f} s (no samples between t = {} and {} ns; tracker.imu_max_gap_s "
+      "{} s) at frame t = {} ns: predicted without the IMU, no preintegration across the gap, "
+      "inertial tracking resumes from the next keyframe\n",
+      gap.seconds(), gap.t0_ns, gap.t1_ns, max_gap_s, frame_t_ns);
+  std::fflush(stdout);
+}
+
 class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
@@ -385,7 +395,12 @@ class RunCommand : public Command {
     if (frame_log_) frame_log.emplace(*frame_log_, "--frame-log");
     std::optional<system::DynamicLog> dynamic_log;
     if (dynamic_log_) dynamic_log.emplace(*dynamic_log_, "--dynamic-log");
+    std::size_t imu_gaps = 0;
     slam.run(*source, [&](const tracking::TrackingResult& result) {
+      if (result.imu_gap) {
+        ++imu_gaps;
+        reportImuGap(*result.imu_gap, result.t_ns, slam.options().tracker.imu_max_gap_s);
+      }
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       if (dynamic_log) dynamic_log->write(result);
       if (overlay) overlay->write(result);
@@ -400,6 +415,7 @@ class RunCommand : public Command {
         "({} keyframes)\n",
         t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
         keyframes_path.string(), keyframes.size());
+    if (imu_gaps > 0) fmt::print("IMU gaps bridged without preintegration: {}\n", imu_gaps);
     fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
                slam.referenceTrackedFrames());
     if (system::isMonocular(options.mode)) {

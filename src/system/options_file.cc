@@ -200,6 +200,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"imu_rotation_prior_sigma_deg", &t.imu_rotation_prior_sigma_deg},
         {"imu_min_keyframe_interval_s", &t.imu_min_keyframe_interval_s},
         {"imu_bridge_s", &t.imu_bridge_s},
+        {"imu_max_gap_s", &t.imu_max_gap_s},
         {"viewing_limits", &t.viewing_limits},
         {"reference_matching", &t.reference_matching.enabled},
         {"reference_max_distance", &t.reference_matching.matching.max_distance},
