@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
 #include "superdyna/io/yaml_file.h"
 #include "superdyna/system/system.h"
@@ -379,12 +380,7 @@ std::string formatSystemOptions(const SystemOptions& options) {
 }
 
 void writeSystemOptions(const std::filesystem::path& path, const SystemOptions& options) {
-  const std::string text = formatSystemOptions(options);
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw InputError(InputLocation{path}, "cannot open file for writing");
-  out << text;
-  out.close();
-  if (!out) throw InputError(InputLocation{path}, "write failed");
+  writeFileAtomically(path, formatSystemOptions(options));
 }
 
 }  // namespace superdyna::system
