@@ -284,6 +284,10 @@ class SimulateCommand : public Command {
     sub_->add_option("--black-frames", black_frames_,
                      "T0:T1: both cameras' images in this interval are black (several allowed)")
         ->group(group);
+    sub_->add_option("--time-offset", options_.faults.imu_time_offset_s,
+                     "Camera-IMU time offset [s], |offset| < 1: every IMU timestamp is written "
+                     "this much late (ground truth and images keep the true times)")
+        ->group(group);
   }
 
   void applyFaults() {

@@ -86,7 +86,7 @@ bool inAnyInterval(const std::vector<FaultInterval>& intervals, double t_s) {
 
 bool SensorFaultOptions::any() const {
   return drop_frame_rate > 0.0 || !drop_frames.empty() || !imu_gaps.empty() || !imu_nan.empty() ||
-         !black_frames.empty();
+         !black_frames.empty() || imu_time_offset_s != 0.0;
 }
 
 void SensorFaultOptions::validate() const {
@@ -95,6 +95,9 @@ void SensorFaultOptions::validate() const {
   }
   if (std::find(drop_frames.begin(), drop_frames.end(), 0) != drop_frames.end()) {
     throw OptionError("--drop-frames", "frame 0 cannot be dropped: the sequence starts with it");
+  }
+  if (!(std::abs(imu_time_offset_s) < 1.0)) {
+    throw OptionError("--time-offset", "must be a number of seconds in (-1, 1)");
   }
   validateIntervals(imu_gaps, "--imu-gap");
   validateIntervals(imu_nan, "--imu-nan");

@@ -105,20 +105,23 @@ void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu, const SE3d& 
 }
 
 /// imu0/data.csv; the rows in faults.imu_gaps are left out, those in faults.imu_nan written as
-/// "nan" (times in seconds after t_first_ns, the first frame).
+/// "nan" (times in seconds after t_first_ns, the first frame); every timestamp is written
+/// faults.imu_time_offset_s late.
 void writeImuData(const fs::path& file, const ImuSequence& imu, const SensorFaultOptions& faults,
                   TimeNs t_first_ns) {
   auto out = openForWriting(file);
   out << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
          "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  const TimeNs offset_ns = secondsToNs(faults.imu_time_offset_s);
   for (const ImuMeasurement& m : imu.measurements) {
     const double t_s = nsToSeconds(m.t_ns - t_first_ns);
     if (inAnyInterval(faults.imu_gaps, t_s)) continue;
+    const TimeNs stamp_ns = m.t_ns + offset_ns;
     if (inAnyInterval(faults.imu_nan, t_s)) {
-      out << m.t_ns << ",nan,nan,nan,nan,nan,nan\n";
+      out << stamp_ns << ",nan,nan,nan,nan,nan,nan\n";
       continue;
     }
-    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", m.t_ns, m.gyro.x(),
+    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", stamp_ns, m.gyro.x(),
                        m.gyro.y(), m.gyro.z(), m.accel.x(), m.accel.y(), m.accel.z());
   }
 }

@@ -52,10 +52,13 @@ TEST(SensorFaults, ParsesIntervalsRatesAndFrameLists) {
   EXPECT_THROW(parseDropFrames("3,x", &bad), OptionError);
   bad.drop_frames = {0};
   EXPECT_THROW(bad.validate(), OptionError);
+  SensorFaultOptions offset;
+  offset.imu_time_offset_s = 1.5;
+  EXPECT_THROW(offset.validate(), OptionError);
 }
 
 /// A 1.5 s indoor flight with frames 3 and 4 dropped, IMU rows missing over [0.5, 0.75) s and nan
-/// over [1.0, 1.1) s, black images over [1.2, 1.3) s.
+/// over [1.0, 1.1) s, black images over [1.2, 1.3) s, IMU timestamps 12.5 ms late.
 TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   const test::ScratchDir dir("sensor_faults");
   SimulationOptions options;
@@ -69,6 +72,7 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   options.faults.imu_gaps = {{0.5, 0.75}};
   options.faults.imu_nan = {{1.0, 1.1}};
   options.faults.black_frames = {{1.2, 1.3}};
+  options.faults.imu_time_offset_s = 0.0125;
   const SimulationSummary summary = generateSequence(options);
   EXPECT_EQ(summary.frames, 29);  // 31 at 20 Hz, two dropped
 
@@ -89,9 +93,12 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
     const bool black = t_s >= 1.2 - 1e-9 && t_s < 1.3 - 1e-9;
     EXPECT_EQ(cv::countNonZero(image) == 0, black) << "t = " << t_s;
   }
+  const std::vector<io::TextRow> imu =
+      io::readTextRows(mav0 / "imu0/data.csv", io::Delimiter::kComma);
+  EXPECT_EQ(std::stoll(imu.front().fields[0]) - t0, secondsToNs(0.0125));  // IMU stamped late
   int nan_rows = 0;
-  for (const io::TextRow& row : io::readTextRows(mav0 / "imu0/data.csv", io::Delimiter::kComma)) {
-    const double t_s = nsToSeconds(std::stoll(row.fields[0]) - t0);
+  for (const io::TextRow& row : imu) {
+    const double t_s = nsToSeconds(std::stoll(row.fields[0]) - t0) - 0.0125;
     EXPECT_FALSE(t_s >= 0.5 + 1e-9 && t_s < 0.75 - 1e-9) << "row in the gap at " << t_s;
     if (row.fields[1] == "nan") ++nan_rows;
   }

@@ -6,7 +6,9 @@
 //   * NaN IMU samples: the rows of an interval are written with "nan" values (a sensor glitch
 //     passed through by the driver);
 //   * black frames: both cameras' images of an interval are all zero (a covered or failed
-//     camera; masks and ground truth are unchanged).
+//     camera; masks and ground truth are unchanged);
+//   * a camera-IMU time offset: every IMU timestamp is written `imu_time_offset_s` late (the IMU
+//     clock runs ahead of the cameras' and the ground truth's), which no reader can detect.
 // Intervals are in seconds after the first frame of the sequence, half-open [t0, t1).
 
 #include <cstddef>
@@ -34,6 +36,7 @@ struct SensorFaultOptions {
   std::vector<FaultInterval> imu_gaps;      ///< IMU rows left out.
   std::vector<FaultInterval> imu_nan;       ///< IMU rows written as NaN.
   std::vector<FaultInterval> black_frames;  ///< Images written all black.
+  double imu_time_offset_s = 0.0;           ///< Added to every IMU timestamp [s], |offset| < 1.
 
   bool any() const;
   /// Throws OptionError naming the option of the first invalid value.
