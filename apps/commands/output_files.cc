@@ -5,6 +5,7 @@
 
 #include <fstream>
 
+#include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
 
 namespace superdyna::apps {
@@ -24,10 +25,7 @@ void requireDistinctOutput(const fs::path& output, const std::vector<fs::path>& 
 
 void writeJson(const fs::path& file, const nlohmann::json& json) {
   if (file.has_parent_path()) fs::create_directories(file.parent_path());
-  std::ofstream out(file);
-  if (!out) throw InputError(InputLocation(file), "cannot open file for writing");
-  out << json.dump(2) << '\n';
-  if (!out) throw InputError(InputLocation(file), "write failed");
+  writeFileAtomically(file, json.dump(2) + '\n');
   spdlog::info("results written to {}", file.string());
 }
 

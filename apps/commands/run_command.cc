@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -205,6 +206,72 @@ void printAccuracy(const Trajectory& gt, const Trajectory& estimate, eval::Align
   }
 }
 
+/// The signal (SIGINT or SIGTERM) that asked the run to stop; 0 while none did.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+/// The first SIGINT / SIGTERM asks the run to stop reading frames; a second one ends the process
+/// at once (the default action of the signal).
+extern "C" void requestStop(int signal) {
+  if (g_stop_signal != 0) {
+    std::signal(signal, SIG_DFL);
+    std::raise(signal);
+    return;
+  }
+  g_stop_signal = signal;
+}
+
+/// Handles SIGINT and SIGTERM for its lifetime (restores the previous handlers).
+class StopSignals {
+ public:
+  StopSignals()
+      : previous_int_(std::signal(SIGINT, requestStop)),
+        previous_term_(std::signal(SIGTERM, requestStop)) {}
+  ~StopSignals() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+  static int received() { return g_stop_signal; }
+  static const char* name(int signal) { return signal == SIGINT ? "SIGINT" : "SIGTERM"; }
+
+ private:
+  using Handler = void (*)(int);
+  Handler previous_int_;
+  Handler previous_term_;
+};
+
+/// Serves the frames of another source until a stop signal arrives, then ends the sequence: the
+/// pipeline finishes the frames it already read.
+class StoppableSource final : public io::DatasetSource {
+ public:
+  explicit StoppableSource(io::DatasetSource& source) : source_(source) {}
+  std::optional<io::FrameBundle> next() override {
+    if (StopSignals::received() != 0) return std::nullopt;
+    return source_.next();
+  }
+  std::size_t size() const override { return source_.size(); }
+  const io::CameraCalibration& camera0() const override { return source_.camera0(); }
+  const std::optional<io::CameraCalibration>& camera1() const override { return source_.camera1(); }
+  const std::optional<io::ImuCalibration>& imu() const override { return source_.imu(); }
+  Trajectory groundTruth() const override { return source_.groundTruth(); }
+  const std::vector<std::string>& warnings() const override { return source_.warnings(); }
+
+ private:
+  io::DatasetSource& source_;
+};
+
+/// One line per IMU gap the tracker met (tracker.imu_max_gap_s), with the dataset times [ns].
+void reportImuGap(const tracking::ImuGap& gap, TimeNs frame_t_ns, double max_gap_s) {
+  fmt::print(
+      "warning: IMU gap of {:.3f} s (no samples between t = {} and {} ns; tracker.imu_max_gap_s "
+      "{} s) at frame t = {} ns: predicted without the IMU, no preintegration across the gap, "
+      "inertial tracking resumes from the next keyframe\n",
+      gap.seconds(), gap.t0_ns, gap.t1_ns, max_gap_s, frame_t_ns);
+  std::fflush(stdout);
+}
+
 class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
@@ -320,6 +387,15 @@ class RunCommand : public Command {
     return path;
   }
 
+  /// No output of the run may replace the --config file it reads.
+  void refuseOutputOntoConfig(const fs::path& keyframes_path) const {
+    if (!config_) return;
+    requireDistinctOutput(output_, {*config_}, "--output");
+    requireDistinctOutput(keyframes_path, {*config_}, "--keyframes");
+    if (frame_log_) requireDistinctOutput(*frame_log_, {*config_}, "--frame-log");
+    if (dynamic_log_) requireDistinctOutput(*dynamic_log_, {*config_}, "--dynamic-log");
+  }
+
   int run() override {
     refuseOutputInsideDataset(output_, "--output");
     const fs::path keyframes_path = keyFramesPath();
@@ -328,6 +404,7 @@ class RunCommand : public Command {
     if (online_) refuseOnlineTrajectoryPath(*online_, keyframes_path);
     if (dynamic_log_) refuseOutputInsideDataset(*dynamic_log_, "--dynamic-log");
     const fs::path config_path = configPath(keyframes_path);
+    refuseOutputOntoConfig(keyframes_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
@@ -372,6 +449,8 @@ class RunCommand : public Command {
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
     const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
+    for (const std::string& warning : source->warnings())
+      fmt::print("warning: {}\n", warning);
     std::unique_ptr<semantics::Segmenter> segmenter =
         semantics::makeSegmenter(options.semantics, path_);
     const std::string segmentation = segmenter ? segmenter->description() : "none";
@@ -402,12 +481,24 @@ class RunCommand : public Command {
     if (frame_log_) frame_log.emplace(*frame_log_, "--frame-log");
     std::optional<system::DynamicLog> dynamic_log;
     if (dynamic_log_) dynamic_log.emplace(*dynamic_log_, "--dynamic-log");
-    slam.run(*source, [&](const tracking::TrackingResult& result) {
+    std::size_t imu_gaps = 0;
+    const StopSignals stop_signals;
+    StoppableSource stoppable(*source);
+    slam.run(stoppable, [&](const tracking::TrackingResult& result) {
+      if (result.imu_gap) {
+        ++imu_gaps;
+        reportImuGap(*result.imu_gap, result.t_ns, slam.options().tracker.imu_max_gap_s);
+      }
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       if (dynamic_log) dynamic_log->write(result);
       if (overlay) overlay->write(result);
       progress.update(slam.timings().frames, source->size(), result, slam);
     });
+    const int stopped_by = StopSignals::received();
+    if (stopped_by != 0) {
+      fmt::print("stopped by {} after {} of {} frames: writing the outputs of the frames so far\n",
+                 StopSignals::name(stopped_by), slam.timings().frames, source->size());
+    }
     const system::TimingSummary& t = slam.timings();
     const Trajectory keyframes = slam.keyFrameTrajectory();
     const Trajectory trajectory = slam.trajectory();
@@ -419,6 +510,7 @@ class RunCommand : public Command {
         "({} keyframes)\n",
         t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
         keyframes_path.string(), keyframes.size());
+    if (imu_gaps > 0) fmt::print("IMU gaps bridged without preintegration: {}\n", imu_gaps);
     fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
                slam.referenceTrackedFrames());
     if (system::isMonocular(options.mode)) {
@@ -438,7 +530,7 @@ class RunCommand : public Command {
     if (options.mode == system::SensorMode::kMono) {
       printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSim3);
     }
-    return 0;
+    return stopped_by == 0 ? 0 : 128 + stopped_by;  // the shell's code for a signal's end
   }
 
  private:

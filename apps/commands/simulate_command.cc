@@ -29,6 +29,7 @@ class SimulateCommand : public Command {
     addSceneOptions();
     addSensorOptions();
     addPhotometricOptions();
+    addFaultOptions();
     sub_->footer(
         "Output: OUT/mav0/{cam0,cam1,imu0,state_groundtruth_estimate0} as in EuRoC, plus per-frame "
         "instance masks (camX/mask, 16-bit, 0 = background), instances.csv, instance_states.csv, "
@@ -266,7 +267,41 @@ class SimulateCommand : public Command {
         ->group(group);
   }
 
+  /// Damage written the way real sensors produce it (sim/sensor_faults.h).
+  void addFaultOptions() {
+    const std::string group = "Sensor faults (times in s after the first frame, T0:T1 half-open)";
+    sub_->add_option("--drop-frames", drop_frames_,
+                     "Dropped frames: a rate in [0, 1) with a decimal point (0.05: each frame "
+                     "dropped with that probability, from --seed) or frame indices 10,11,40; "
+                     "their rows and images are missing from both cameras")
+        ->group(group);
+    sub_->add_option("--imu-gap", imu_gaps_,
+                     "T0:T1: imu0/data.csv has no rows in this interval (several allowed)")
+        ->group(group);
+    sub_->add_option("--imu-nan", imu_nan_,
+                     "T0:T1: imu0/data.csv rows in this interval hold nan (several allowed)")
+        ->group(group);
+    sub_->add_option("--black-frames", black_frames_,
+                     "T0:T1: both cameras' images in this interval are black (several allowed)")
+        ->group(group);
+    sub_->add_option("--time-offset", options_.faults.imu_time_offset_s,
+                     "Camera-IMU time offset [s], |offset| < 1: every IMU timestamp is written "
+                     "this much late (ground truth and images keep the true times)")
+        ->group(group);
+  }
+
+  void applyFaults() {
+    if (drop_frames_) sim::parseDropFrames(*drop_frames_, &options_.faults);
+    for (const std::string& text : imu_gaps_)
+      options_.faults.imu_gaps.push_back(sim::parseFaultInterval(text, "--imu-gap"));
+    for (const std::string& text : imu_nan_)
+      options_.faults.imu_nan.push_back(sim::parseFaultInterval(text, "--imu-nan"));
+    for (const std::string& text : black_frames_)
+      options_.faults.black_frames.push_back(sim::parseFaultInterval(text, "--black-frames"));
+  }
+
   void applyChoices() {
+    applyFaults();
     options_.motion.trajectory_file = trajectory_;
     options_.motion.read.format = io::parseTrajectoryFormat(trajectory_format_);
     options_.motion.read.kitti_times = trajectory_times_;
@@ -310,6 +345,10 @@ class SimulateCommand : public Command {
   std::vector<double> imu_rotation_;
   double exposure_ms_ = 0.0;
   std::string illumination_ = "none";
+  std::optional<std::string> drop_frames_;
+  std::vector<std::string> imu_gaps_;
+  std::vector<std::string> imu_nan_;
+  std::vector<std::string> black_frames_;
 };
 
 }  // namespace

@@ -1,9 +1,11 @@
 #include "superdyna/io/euroc_dataset.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <iterator>
@@ -93,6 +95,30 @@ CameraList readCameraList(const fs::path& camera_dir) {
   return list;
 }
 
+/// Frames missing from a camera's list: time steps longer than 1.5 nominal periods (rate_hz of
+/// its sensor.yaml), each counted as round(step / period) - 1 dropped frames.
+void warnAboutDroppedFrames(const CameraList& list, double rate_hz,
+                            std::vector<std::string>& warnings) {
+  if (!(rate_hz > 0.0)) return;
+  const double period_ns = 1e9 / rate_hz;
+  long long dropped = 0;
+  int steps = 0;
+  ImuGaps longest;  // the same bookkeeping: count and largest step with its line
+  for (std::size_t k = 1; k < list.images.size(); ++k) {
+    const TimeNs step = list.images[k].ref.t_ns - list.images[k - 1].ref.t_ns;
+    if (static_cast<double>(step) <= 1.5 * period_ns) continue;
+    ++steps;
+    dropped += std::llround(static_cast<double>(step) / period_ns) - 1;
+    longest.note(step, 0, list.images[k].line);
+  }
+  if (steps == 0) return;
+  warnings.push_back(fmt::format(
+      "{}: about {} dropped frame(s) in {} time step(s) longer than 1.5 frame periods of {} Hz; "
+      "the largest, {:.1f} ms, ends at line {}",
+      list.csv.string(), dropped, steps, rate_hz, static_cast<double>(longest.largest_ns) / 1e6,
+      longest.largest_line));
+}
+
 void requireImageExists(const ListedImage& image, const fs::path& csv) {
   if (fs::is_regular_file(image.ref.path)) return;
   throw InputError(InputLocation{csv, image.line, "filename"},
@@ -160,6 +186,36 @@ std::vector<StereoFrameRef> pairStereoFrames(const CameraList& cam0, const Camer
   return frames;
 }
 
+/// The value of an IMU field; nullopt for a non-finite number ("nan", "inf": a sensor glitch the
+/// driver passed through); InputError for anything that is not a number.
+std::optional<double> parseImuValue(std::string_view field, const InputLocation& where) {
+  double value = 0.0;
+  const auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), value);
+  if (!field.empty() && ec == std::errc() && ptr == field.data() + field.size() &&
+      !std::isfinite(value)) {
+    return std::nullopt;
+  }
+  return parseFiniteDouble(field, where);
+}
+
+/// "5, 7-9, 12": the line numbers (ascending) with runs of consecutive ones joined, at most
+/// `max_runs` runs and then "...".
+std::string lineRuns(const std::vector<int>& lines, std::size_t max_runs) {
+  std::vector<std::string> runs;
+  for (std::size_t i = 0; i < lines.size();) {
+    std::size_t j = i;
+    while (j + 1 < lines.size() && lines[j + 1] == lines[j] + 1)
+      ++j;
+    if (runs.size() == max_runs) {
+      runs.emplace_back("...");
+      break;
+    }
+    runs.push_back(j == i ? fmt::format("{}", lines[i]) : fmt::format("{}-{}", lines[i], lines[j]));
+    i = j + 1;
+  }
+  return fmt::format("{}", fmt::join(runs, ", "));
+}
+
 std::vector<ImuSample> readImuCsv(const fs::path& csv, TimeNs nominal_period_ns,
                                   std::vector<std::string>& warnings) {
   static constexpr std::array<const char*, 6> kNames = {"gyro_x",  "gyro_y",  "gyro_z",
@@ -168,19 +224,31 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, TimeNs nominal_period_ns,
       static_cast<TimeNs>(kImuGapWarningPeriods * static_cast<double>(nominal_period_ns));
   std::vector<ImuSample> samples;
   ImuGaps gaps;
+  std::vector<int> non_finite_lines;
   for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
     requireFieldCount(row, csv, 7, 7);
     ImuSample sample;
     sample.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
+    bool finite = true;
     for (std::size_t i = 0; i < kNames.size(); ++i) {
-      const double value = parseFiniteDouble(row.fields[i + 1], row.at(csv, kNames[i]));
-      (i < 3 ? sample.gyro : sample.accel)[static_cast<Eigen::Index>(i % 3)] = value;
+      const std::optional<double> value = parseImuValue(row.fields[i + 1], row.at(csv, kNames[i]));
+      finite = finite && value.has_value();
+      (i < 3 ? sample.gyro : sample.accel)[static_cast<Eigen::Index>(i % 3)] = value.value_or(0.0);
+    }
+    if (!finite) {
+      non_finite_lines.push_back(row.line);
+      continue;
     }
     if (!samples.empty()) {
       requireIncreasingTime(samples.back().t_ns, sample.t_ns, true, row.at(csv, "timestamp"));
       gaps.note(sample.t_ns - samples.back().t_ns, gap_threshold_ns, row.line);
     }
     samples.push_back(sample);
+  }
+  if (!non_finite_lines.empty()) {
+    warnings.push_back(fmt::format("{}: {} row(s) with nan or inf values skipped (lines {})",
+                                   csv.string(), non_finite_lines.size(),
+                                   lineRuns(non_finite_lines, 5)));
   }
   if (samples.empty()) throw InputError(InputLocation{csv}, "no IMU rows found");
   if (gaps.count > 0) {
@@ -291,6 +359,7 @@ EurocDataset EurocDataset::open(const fs::path& path) {
   dataset.cam0_ = readCameraCalibration(cam0_dir / "sensor.yaml");
   const CameraList cam0 = readCameraList(cam0_dir);
   dataset.cam0_frames_ = servedFrames(cam0);
+  warnAboutDroppedFrames(cam0, dataset.cam0_.rate_hz, dataset.warnings_);
 
   const fs::path cam1_dir = dataset.root_ / "cam1";
   if (fs::is_directory(cam1_dir)) {

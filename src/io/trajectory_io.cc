@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
 #include "superdyna/io/text_table.h"
 
@@ -132,12 +133,12 @@ Trajectory readKitti(const fs::path& file, const std::optional<fs::path>& times_
 
 void writeLines(const fs::path& file, const Trajectory& trajectory, const std::string& header,
                 const auto& format_pose) {
-  std::ofstream out(file);
-  if (!out) throw InputError(InputLocation{file}, "cannot open file for writing");
+  AtomicFile atomic(file);  // a crash never leaves a half-written trajectory
+  std::ofstream& out = atomic.stream();
   out << header;
   for (const StampedPose& pose : trajectory)
     out << format_pose(pose) << '\n';
-  if (!out) throw InputError(InputLocation{file}, "write failed");
+  atomic.commit();
 }
 
 }  // namespace

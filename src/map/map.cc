@@ -231,8 +231,12 @@ void Map::relinkSuccessor(const KeyFrame& erased) {
   for (auto& [other_id, other] : keyframes_) {
     if (other.previous != erased.id) continue;
     other.previous = erased.previous;
-    if (erased.previous == kNoKeyFrame) {
-      other.imu_from_previous.clear();  // nothing before it to integrate from
+    // Nothing before it to integrate from, or no samples from the erased keyframe on (an IMU gap
+    // restarted the run): merging would bridge the gap with one interpolated step.
+    const bool linked =
+        !other.imu_from_previous.empty() && other.imu_from_previous.front().t_ns <= erased.t_ns;
+    if (erased.previous == kNoKeyFrame || !linked) {
+      other.imu_from_previous.clear();
     } else {
       other.imu_from_previous = mergeImuSamples(erased.imu_from_previous, other.imu_from_previous);
     }

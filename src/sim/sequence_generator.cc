@@ -104,12 +104,24 @@ void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu, const SE3d& 
              imu.accelerometer_noise_density, imu.accelerometer_random_walk);
 }
 
-void writeImuData(const fs::path& file, const ImuSequence& imu) {
+/// imu0/data.csv; the rows in faults.imu_gaps are left out, those in faults.imu_nan written as
+/// "nan" (times in seconds after t_first_ns, the first frame); every timestamp is written
+/// faults.imu_time_offset_s late.
+void writeImuData(const fs::path& file, const ImuSequence& imu, const SensorFaultOptions& faults,
+                  TimeNs t_first_ns) {
   auto out = openForWriting(file);
   out << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
          "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  const TimeNs offset_ns = secondsToNs(faults.imu_time_offset_s);
   for (const ImuMeasurement& m : imu.measurements) {
-    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", m.t_ns, m.gyro.x(),
+    const double t_s = nsToSeconds(m.t_ns - t_first_ns);
+    if (inAnyInterval(faults.imu_gaps, t_s)) continue;
+    const TimeNs stamp_ns = m.t_ns + offset_ns;
+    if (inAnyInterval(faults.imu_nan, t_s)) {
+      out << stamp_ns << ",nan,nan,nan,nan,nan,nan\n";
+      continue;
+    }
+    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", stamp_ns, m.gyro.x(),
                        m.gyro.y(), m.gyro.z(), m.accel.x(), m.accel.y(), m.accel.z());
   }
 }
@@ -399,8 +411,12 @@ class SequenceWriter {
     for (std::size_t k = 0; k < frame_times_.size(); ++k) {
       const TimeNs t = frame_times_[k];
       const std::string name = fmt::format("{}.png", t);
-      const RenderResult left = renderCamera(0, t);
-      const RenderResult right = renderCamera(1, t);
+      RenderResult left = renderCamera(0, t);
+      RenderResult right = renderCamera(1, t);
+      if (inAnyInterval(options_.faults.black_frames, nsToSeconds(t - frame_times_.front()))) {
+        left.image.setTo(0);  // a covered or failed camera: masks and ground truth unchanged
+        right.image.setTo(0);
+      }
       writeFrame(0, name, left);
       writeFrame(1, name, right);
       data0 << t << ',' << name << '\n';
@@ -671,6 +687,7 @@ void SimulationOptions::validate() const {
   world.validate();
   imu.validate();
   illumination.validate();
+  faults.validate();
   if (!(motion_blur_exposure_s >= 0.0 && motion_blur_exposure_s <= 0.1)) {
     throw OptionError("exposure-ms", "must be in [0, 100] ms");
   }
@@ -688,6 +705,16 @@ void SimulationOptions::validate() const {
   if (!(knot_spacing_s >= 0.01 && knot_spacing_s <= 1.0)) {
     throw OptionError("knot-spacing", "must be in [0.01, 1] s");
   }
+}
+
+/// The frame times left after the dropped frames (SensorFaultOptions::dropsFrame) are removed.
+std::vector<TimeNs> withoutDroppedFrames(const std::vector<TimeNs>& times,
+                                         const SimulationOptions& options) {
+  std::vector<TimeNs> kept;
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    if (!options.faults.dropsFrame(k, options.seed)) kept.push_back(times[k]);
+  }
+  return kept;
 }
 
 SimulationSummary generateSequence(const SimulationOptions& options,
@@ -719,7 +746,8 @@ SimulationSummary generateSequence(const SimulationOptions& options,
   writeCameraYaml(mav0 / "cam0/sensor.yaml", "cam0", options.rig, options.rig.T_b_c0());
   writeCameraYaml(mav0 / "cam1/sensor.yaml", "cam1", options.rig, options.rig.T_b_c1());
   writeImuYaml(mav0 / "imu0/sensor.yaml", imu_options, options.rig.T_b_i());
-  writeImuData(mav0 / "imu0/data.csv", imu);
+  std::vector<TimeNs> frame_times = frameTimes(motion.window, options.rig.camera_rate_hz);
+  writeImuData(mav0 / "imu0/data.csv", imu, options.faults, frame_times.front());
   writeGroundTruth(mav0 / "state_groundtruth_estimate0", imu);
   writeInstances(mav0 / "instances.csv", world.agents);
 
@@ -731,8 +759,7 @@ SimulationSummary generateSequence(const SimulationOptions& options,
   for (std::size_t i = 1; i < imu.states.size(); ++i) {
     summary.path_length_m += (imu.states[i].T_w_b.t - imu.states[i - 1].T_w_b.t).norm();
   }
-  SequenceWriter writer(options, spline, world,
-                        frameTimes(motion.window, options.rig.camera_rate_hz));
+  SequenceWriter writer(options, spline, world, withoutDroppedFrames(frame_times, options));
   writer.run(progress, &summary);
   if (options.semantic_color) {
     auto colours = openForWriting(mav0 / "segmentation_colors.csv");

@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
 #include "superdyna/io/yaml_file.h"
 #include "superdyna/system/system.h"
@@ -201,6 +202,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"imu_rotation_prior_sigma_deg", &t.imu_rotation_prior_sigma_deg},
         {"imu_min_keyframe_interval_s", &t.imu_min_keyframe_interval_s},
         {"imu_bridge_s", &t.imu_bridge_s},
+        {"imu_max_gap_s", &t.imu_max_gap_s},
         {"viewing_limits", &t.viewing_limits},
         {"reference_matching", &t.reference_matching.enabled},
         {"reference_max_distance", &t.reference_matching.matching.max_distance},
@@ -379,12 +381,7 @@ std::string formatSystemOptions(const SystemOptions& options) {
 }
 
 void writeSystemOptions(const std::filesystem::path& path, const SystemOptions& options) {
-  const std::string text = formatSystemOptions(options);
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw InputError(InputLocation{path}, "cannot open file for writing");
-  out << text;
-  out.close();
-  if (!out) throw InputError(InputLocation{path}, "write failed");
+  writeFileAtomically(path, formatSystemOptions(options));
 }
 
 }  // namespace superdyna::system

@@ -47,6 +47,23 @@ void ImuSampleBuffer::append(const std::vector<io::ImuSample>& samples) {
   }
 }
 
+std::optional<ImuGap> findImuGap(const std::vector<io::ImuSample>& samples, TimeNs max_gap_ns) {
+  std::optional<ImuGap> gap;
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    if (samples[k].t_ns - samples[k - 1].t_ns > max_gap_ns) {
+      gap = ImuGap{samples[k - 1].t_ns, samples[k].t_ns};
+    }
+  }
+  return gap;
+}
+
+void ImuSampleBuffer::restartAt(const std::vector<io::ImuSample>& samples, TimeNs t_ns) {
+  samples_.clear();
+  for (const io::ImuSample& sample : samples) {
+    if (sample.t_ns >= t_ns) samples_.push_back(sample);
+  }
+}
+
 std::vector<io::ImuSample> ImuSampleBuffer::startInterval(TimeNs t_ns) {
   std::vector<io::ImuSample> interval = samples_;
   std::size_t first = 0;  // the last sample at or before t_ns

@@ -70,6 +70,7 @@ void TrackerOptions::validate() const {
   mono_init.validate();
   imu_prior.validate();
   if (!(imu_bridge_s >= 0.0)) throw OptionError("tracker.imu_bridge_s", "must be >= 0");
+  if (!(imu_max_gap_s > 0.0)) throw OptionError("tracker.imu_max_gap_s", "must be > 0");
   reference_matching.validate();
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
     throw OptionError("tracker.imu_min_keyframe_interval_s", "must be >= 0");
@@ -128,8 +129,11 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
   }
 }
 
-Tracker::Prediction Tracker::predictPose(const Frame& frame) const {
+Tracker::Prediction Tracker::predictPose(const Frame& frame, bool imu_usable) const {
   if (!has_last_) return {};
+  if (!imu_usable) {
+    return {T_w_b_last_ * (has_motion_ ? motion_ : SE3d()), false, std::nullopt, std::nullopt};
+  }
   if (std::optional<InertialPrediction> inertial = predictInertial(frame)) {
     const SE3d T_w_b = inertial->T_w_b;
     return {T_w_b, true, std::move(inertial), std::nullopt};
@@ -206,13 +210,13 @@ TrackingResult Tracker::track(const Frame& input) {
   result.times.extract_ms = input.extract_ms;
   result.times.stereo_ms = input.stereo_ms;
   const auto start = Clock::now();
-  if (imu_) imu_since_keyframe_.append(input.imu);
+  const bool imu_usable = collectImu(input, result);
   // The map-reading part of the frame holds the map's read lock (map.h): it sees each update of
   // the mapping thread entirely or not at all. Without a map it reads none, and starting a map
   // waits for the mapping thread, which must not find the lock held.
   map::Map::ReadLock reading;
   if (has_map_) reading = map_->readLock();
-  const Prediction prediction = predictPose(input);
+  const Prediction prediction = predictPose(input, imu_usable);
   result.T_w_b = prediction.T_w_b;
   std::vector<int> kept;
   std::optional<Frame> without_moving;
@@ -261,6 +265,19 @@ TrackingResult Tracker::track(const Frame& input) {
   rememberFrame(input, kept, has_map_ ? tracked : std::vector<map::MapPointId>{});
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
+}
+
+bool Tracker::collectImu(const Frame& frame, TrackingResult& result) {
+  if (!imu_) return false;
+  const std::optional<ImuGap> gap = findImuGap(frame.imu, secondsToNs(options_.imu_max_gap_s));
+  if (!gap) {
+    imu_since_keyframe_.append(frame.imu);
+    return true;
+  }
+  imu_since_keyframe_.restartAt(frame.imu, gap->t1_ns);
+  if (gap->t1_ns != last_imu_gap_end_ns_) result.imu_gap = gap;  // every frame in it meets it
+  last_imu_gap_end_ns_ = gap->t1_ns;
+  return false;
 }
 
 void Tracker::initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result) {

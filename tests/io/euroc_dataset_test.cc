@@ -240,6 +240,28 @@ TEST(EurocDatasetTest, WarnsAboutUnpairedFramesAndImuGaps) {
   EXPECT_TRUE(anyContains(dataset.warnings(), "55.0 ms, ends at line 20"));
 }
 
+TEST(EurocDatasetTest, SkipsNonFiniteImuRowsAndReportsDroppedFrames) {
+  SUPERDYNA_REQUIRE_SHARED(sequence, kSequence);
+  ScratchDir dir("euroc_faults");
+  makeSmallCopy(sequence, dir);
+  editLine(dir / "mav0/imu0/data.csv", 5, "1403715273282142976,0.1,nan,0.1,9.0,0.1,-3.7");
+  editLine(dir / "mav0/imu0/data.csv", 6, "1403715273287142912,inf,0.1,0.1,9.0,0.1,-3.7");
+  editLine(dir / "mav0/imu0/data.csv", 9, "1403715273302142976,NaN,NaN,NaN,NaN,NaN,NaN");
+  // cam0's second frame dropped by the driver (row gone; cam1 keeps it, unpaired).
+  editLine(dir / "mav0/cam0/data.csv", 3, "");
+  const EurocDataset dataset = EurocDataset::open(dir.path());
+  EXPECT_EQ(dataset.imu().size(), 97u);
+  for (const ImuSample& sample : dataset.imu()) {
+    EXPECT_TRUE(sample.gyro.allFinite() && sample.accel.allFinite());
+  }
+  EXPECT_TRUE(anyContains(dataset.warnings(),
+                          "imu0/data.csv: 3 row(s) with nan or inf values skipped (lines 5-6, 9)"));
+  EXPECT_TRUE(anyContains(dataset.warnings(),
+                          "cam0/data.csv: about 1 dropped frame(s) in 1 time "
+                          "step(s) longer than 1.5 frame periods of 20 Hz"));
+  EXPECT_TRUE(anyContains(dataset.warnings(), "the largest, 100.0 ms, ends at line 3"));
+}
+
 TEST(EurocDatasetTest, RejectsCorruptedCopiesNamingFileLineAndField) {
   SUPERDYNA_REQUIRE_SHARED(sequence, kSequence);
   struct Case {
@@ -253,11 +275,11 @@ TEST(EurocDatasetTest, RejectsCorruptedCopiesNamingFileLineAndField) {
          editLine(mav0 / "imu0/data.csv", 7, "1403715273292142848,-0.0013,0.0195,0.0782");
        },
        {"imu0/data.csv:7", "expected 7 fields, found 4"}},
-      {"nan in imu",
+      {"word in imu",
        [](const fs::path& mav0) {
-         editLine(mav0 / "imu0/data.csv", 5, "1403715273282142976,0.1,nan,0.1,9.0,0.1,-3.7");
+         editLine(mav0 / "imu0/data.csv", 5, "1403715273282142976,0.1,nann,0.1,9.0,0.1,-3.7");
        },
-       {"imu0/data.csv:5 [gyro_y]", "'nan' is not finite"}},
+       {"imu0/data.csv:5 [gyro_y]", "'nann' is not a number"}},
       {"unsorted imu",
        [](const fs::path& mav0) {
          editLine(mav0 / "imu0/data.csv", 5, "1403715273262142976,0.1,0.1,0.1,9.0,0.1,-3.7");

@@ -443,6 +443,33 @@ TEST(MapTest, MergedImuSamplesDropTheSharedBracketingSample) {
   EXPECT_EQ(merged.back().t_ns, 15);
 }
 
+/// Keyframes at 0, 1 and 2 s with 100 Hz samples between them; the third one's run restarted
+/// after an IMU gap from 1.0 to 1.6 s, so it starts at 1.6 s (after its predecessor).
+TEST(MapTest, ErasingTheKeyFrameBeforeAnImuGapLeavesTheSuccessorUnlinked) {
+  const auto run = [](double t0_s, double t1_s) {
+    std::vector<io::ImuSample> samples;
+    for (TimeNs t = secondsToNs(t0_s); t <= secondsToNs(t1_s); t += secondsToNs(0.01)) {
+      io::ImuSample s;
+      s.t_ns = t;
+      samples.push_back(s);
+    }
+    return samples;
+  };
+  Map map;
+  KeyFrameId ids[3] = {};
+  for (int k = 0; k < 3; ++k) {
+    KeyFrame keyframe = makeKeyFrame(1);
+    keyframe.t_ns = secondsToNs(k);
+    if (k == 1) keyframe.imu_from_previous = run(0.0, 1.0);
+    if (k == 2) keyframe.imu_from_previous = run(1.6, 2.0);
+    ids[k] = map.addKeyFrame(std::move(keyframe));
+  }
+  ASSERT_TRUE(map.eraseKeyFrame(ids[1]));
+  EXPECT_EQ(map.keyFrame(ids[2])->previous, ids[0]);
+  // Merged, the run would bracket [0, 2] s with one interpolated 0.6 s step over the gap.
+  EXPECT_TRUE(map.keyFrame(ids[2])->imu_from_previous.empty());
+}
+
 TEST_F(ThreeKeyFrameMap, TransformWorldMovesPosesPointsAndVelocities) {
   ASSERT_TRUE(map.setKeyFrameInertialState(kf[1], Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Zero(),
                                            Eigen::Vector3d::Zero()));

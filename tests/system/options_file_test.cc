@@ -87,6 +87,7 @@ tracker:
   imu_rotation_prior_sigma_deg: 0.5
   imu_min_keyframe_interval_s: 0.2
   imu_bridge_s: 0.3
+  imu_max_gap_s: 0.2
   viewing_limits: false
   reference_matching: false
   reference_max_distance: 60

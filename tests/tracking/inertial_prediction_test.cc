@@ -32,6 +32,38 @@ TEST(ImuSampleBuffer, HandsOverTheSamplesBracketingEachKeyFrameInterval) {
   EXPECT_EQ(buffer.samples().front().t_ns, 20);
 }
 
+TEST(ImuGap, FindsTheLastStretchLongerThanTheLimit) {
+  const auto at = [](TimeNs t) {
+    io::ImuSample s;
+    s.t_ns = t;
+    return s;
+  };
+  const std::vector<io::ImuSample> samples = {at(0), at(5), at(30), at(35), at(80), at(85)};
+  EXPECT_FALSE(findImuGap(samples, 45).has_value());  // the 45 ns stretch is at the limit
+  const std::optional<ImuGap> gap = findImuGap(samples, 20);
+  ASSERT_TRUE(gap.has_value());
+  EXPECT_EQ(*gap, (ImuGap{35, 80}));
+  EXPECT_EQ(findImuGap(samples, 44), (ImuGap{35, 80}));
+  EXPECT_FALSE(findImuGap({at(0)}, 1).has_value());
+}
+
+TEST(ImuSampleBuffer, RestartsAfterAGapSoThatNoPredictionSpansIt) {
+  const auto at = [](TimeNs t) {
+    io::ImuSample s;
+    s.t_ns = t;
+    return s;
+  };
+  ImuSampleBuffer buffer;
+  buffer.append({at(0), at(10), at(20)});
+  buffer.restartAt({at(20), at(500), at(510)}, 500);
+  ASSERT_EQ(buffer.samples().size(), 2u);
+  EXPECT_EQ(buffer.samples().front().t_ns, 500);
+  map::KeyFrame keyframe;  // inserted at 15, before the gap
+  keyframe.t_ns = 15;
+  EXPECT_FALSE(predictFromKeyFrame(keyframe, buffer.samples(), 505, SE3d(), imu::ImuNoise{}, {})
+                   .has_value());
+}
+
 TEST(InertialPrediction, PredictsTheTruePoseFromTheKeyFrameState) {
   const sim::Se3Spline motion = test::livelyMotion(2.0);
   sim::ImuNoiseOptions imu_options;

@@ -11,7 +11,8 @@
 //
 // Everything is read and validated when the dataset is opened (images are only checked to exist);
 // bad input throws InputError naming the file, the line and the field. Oddities that do not stop
-// the dataset from being used (unpaired stereo frames, IMU gaps) are collected in warnings().
+// the dataset from being used (unpaired stereo frames, IMU gaps, dropped camera frames, IMU rows
+// holding nan or inf, which are skipped) are collected in warnings(), naming file and lines.
 // Every image the dataset serves (all cam0 frames, the cam1 images of stereo pairs) must exist.
 // cam1 rows without a cam0 frame at the same time are never served, so a missing image among them
 // is only reported: the shared V1_01 excerpt's cam1/data.csv lists 4 such rows without images.
@@ -111,7 +112,8 @@ class EurocDataset {
   /// The ground-truth state closest in time to t_ns, if one lies within max_diff_ns.
   std::optional<GroundTruthState> groundTruthNearest(TimeNs t_ns, TimeNs max_diff_ns) const;
 
-  /// Non-fatal findings of open(): unpaired stereo frames, IMU gaps. One sentence each.
+  /// Non-fatal findings of open(): unpaired stereo frames, IMU gaps, dropped cam0 frames, skipped
+  /// non-finite IMU rows. One sentence each.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
  private:

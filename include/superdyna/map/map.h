@@ -127,7 +127,8 @@ class Map {
   /// points that were left without any observation (the caller decides whether to cull them), or
   /// nullopt when the keyframe is unknown. The temporal chain stays connected: the successor takes
   /// the erased keyframe's predecessor and the concatenation of both IMU sample runs
-  /// (mergeImuSamples); without a predecessor its samples are cleared.
+  /// (mergeImuSamples); without a predecessor, or when its own run does not reach back to the
+  /// erased keyframe (restarted after an IMU gap), its samples are cleared.
   std::optional<std::vector<MapPointId>> eraseKeyFrame(KeyFrameId id);
 
   /// Erases a map point with all its observations; false when unknown.

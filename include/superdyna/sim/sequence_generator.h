@@ -30,6 +30,7 @@
 #include "superdyna/sim/illumination.h"
 #include "superdyna/sim/imu_simulator.h"
 #include "superdyna/sim/motion_source.h"
+#include "superdyna/sim/sensor_faults.h"
 #include "superdyna/sim/world_builder.h"
 
 namespace superdyna::sim {
@@ -79,6 +80,7 @@ struct SimulationOptions {
   int motion_blur_max_samples = 15;
   bool semantic_color = false;  ///< Also write VIODE-like colour segmentation images.
   int landmark_count = 2000;    ///< Ground-truth landmarks to write (0 = none).
+  SensorFaultOptions faults;    ///< Damage written into the sequence (default: none).
   double knot_spacing_s = 0.1;  ///< Spline knot spacing fitted to the motion [s].
   std::uint64_t seed = 1;       ///< Seeds the world, agents, IMU noise and image noise.
   /// Optional PNG showing one cam0 frame beside its colour-coded instance mask.

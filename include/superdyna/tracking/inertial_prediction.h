@@ -40,6 +40,17 @@ struct InertialPrediction {
   optim::PosePrior prior;                         ///< The pose prior for motion-only BA.
 };
 
+/// A stretch without IMU samples: consecutive samples t0_ns < t1_ns farther apart than allowed.
+struct ImuGap {
+  TimeNs t0_ns = 0;  ///< The last sample before the gap.
+  TimeNs t1_ns = 0;  ///< The first sample after it.
+  double seconds() const { return nsToSeconds(t1_ns - t0_ns); }
+  bool operator==(const ImuGap&) const = default;
+};
+
+/// The last pair of consecutive samples (time-ordered) more than max_gap_ns apart, if any.
+std::optional<ImuGap> findImuGap(const std::vector<io::ImuSample>& samples, TimeNs max_gap_ns);
+
 /// IMU samples collected since the newest keyframe: every frame appends its samples (each frame's
 /// run brackets the interval since the previous frame, so consecutive runs overlap by a sample).
 class ImuSampleBuffer {
@@ -50,6 +61,10 @@ class ImuSampleBuffer {
   /// from the previous keyframe) and keeps only those from the last one at or before t_ns.
   std::vector<io::ImuSample> startInterval(TimeNs t_ns);
   void clear() { samples_.clear(); }
+  /// Drops every sample held and keeps from `samples` only those at or after t_ns: after an IMU
+  /// gap ending at t_ns the held run no longer brackets the newest keyframe, so neither a
+  /// prediction nor the next keyframe's preintegration spans the gap.
+  void restartAt(const std::vector<io::ImuSample>& samples, TimeNs t_ns);
   const std::vector<io::ImuSample>& samples() const { return samples_; }
 
  private:

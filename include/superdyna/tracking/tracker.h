@@ -107,6 +107,13 @@ struct TrackerOptions {
   /// projection search radius: 3 s turned one reset on a dim, blurred XFeat run into 61 lost frames
   /// and twice the ATE, so the default covers short dropouts (a few blurred frames) only.
   double imu_bridge_s = 0.5;
+  /// Consecutive IMU samples farther apart than this [s], > 0, are a gap (a dropped stretch of the
+  /// stream): frames whose interval touches it are predicted without the IMU (the gyroscope-free
+  /// constant-velocity model), the IMU run restarts after the gap, and the keyframe interval that
+  /// spans it gets no preintegration factor (a single step over the gap would be one linearly
+  /// interpolated sample, its covariance singular). Inertial tracking resumes from the first
+  /// keyframe after the gap. Each gap is reported once (TrackingResult::imu_gap).
+  double imu_max_gap_s = 0.1;
   /// Local-map points count as visible to a frame (map::MapPoint::visible_count, the denominator of
   /// culling's found ratio) only from within their viewing limits (map::withinViewingLimits:
   /// ORB-SLAM's distance range and 60-degree viewing angle) or when matched, so that frames that
@@ -166,6 +173,9 @@ struct TrackingResult {
   /// frame's keypoints as the front end built them.
   dynamic::MovingObjectReport moving;
   int culled_moving_points = 0;  ///< Map points culled because their object moves.
+  /// An IMU gap (TrackerOptions::imu_max_gap_s) first met at this frame; the frame was predicted
+  /// without the IMU.
+  std::optional<ImuGap> imu_gap;
   StageTimes times;
 };
 
@@ -249,7 +259,11 @@ class Tracker {
   void initializeInertialIfDue(TrackingResult& result);
   /// After the inertial initialisation: the biases of the newest keyframe local BA has refined.
   void updateBiasFromMap();
-  Prediction predictPose(const Frame& frame) const;
+  /// imu_usable false (an IMU gap in the frame's interval): the constant-velocity model only.
+  Prediction predictPose(const Frame& frame, bool imu_usable) const;
+  /// Adds the frame's IMU samples to the run since the keyframe; on a gap (imu_max_gap_s) restarts
+  /// the run after it, reports a new gap in `result` and returns false (IMU not usable).
+  bool collectImu(const Frame& frame, TrackingResult& result);
   SE3d predictWithImu(const imu::Preintegration& preintegration) const;
   std::optional<optim::PosePrior> rotationPrior(const Prediction& prediction) const;
   SE3d initialPose(const Frame& frame, const SE3d& predicted) const;
@@ -342,6 +356,7 @@ class Tracker {
   std::optional<io::ImuCalibration> imu_;
   imu::Bias bias_;
   ImuSampleBuffer imu_since_keyframe_;  ///< Samples since the newest keyframe.
+  TimeNs last_imu_gap_end_ns_ = 0;      ///< End of the last IMU gap reported.
   double baseline_m_ = 0.0;
   std::unique_ptr<map::Map> map_;
   mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Builds the given test binaries with AddressSanitizer + UndefinedBehaviorSanitizer into
+# build-asan/ and runs them (optionally filtered); any report stops the run with a non-zero exit
+# code. The instrumented build is slow on 2 cores: build only the binaries you need, and build
+# everything at most once in a while.
+#
+# Usage: scripts/sanitize.sh BINARY[:GTEST_FILTER] [BINARY[:GTEST_FILTER]...]
+#   e.g. scripts/sanitize.sh io_test tracker_test:'ImuGap*:ImuSampleBuffer*' core_test:'AtomicFile*'
+#   The name `superdyna` builds the command line tool only (for CLI tests run by hand).
+# Environment: BUILD_DIR (default build-asan), JOBS (default 2), ASAN_OPTIONS / UBSAN_OPTIONS
+#              (appended to the defaults below).
+set -euo pipefail
+[ $# -ge 1 ] || { sed -n '2,12p' "$0"; exit 2; }
+
+repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir=${BUILD_DIR:-"$repo_dir/build-asan"}
+jobs=${JOBS:-2}
+flags="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
+
+targets=()
+for spec in "$@"; do targets+=("${spec%%:*}"); done
+
+mkdir -p "$build_dir/.deps"
+[ -e "$repo_dir/.deps/onnxruntime" ] && ln -sfn "$(readlink -f "$repo_dir/.deps/onnxruntime")" \
+  "$build_dir/.deps/onnxruntime"
+cmake -S "$repo_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS="$flags" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
+  -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" -DSUPERDYNA_WERROR=ON >/dev/null
+nice -n 10 cmake --build "$build_dir" -j "$jobs" --target "${targets[@]}"
+
+# ONNX Runtime is not instrumented: its allocations would be reported as leaks at exit.
+export ASAN_OPTIONS="halt_on_error=1 detect_leaks=1 ${ASAN_OPTIONS:-}"
+export UBSAN_OPTIONS="halt_on_error=1 print_stacktrace=1 ${UBSAN_OPTIONS:-}"
+for spec in "$@"; do
+  binary=${spec%%:*}
+  [ "$binary" = superdyna ] && continue
+  filter='*'
+  [ "$spec" != "$binary" ] && filter=${spec#*:}
+  echo "[asan+ubsan] $binary --gtest_filter=$filter"
+  nice -n 10 "$build_dir/bin/$binary" --gtest_filter="$filter" --gtest_brief=1
+done
+echo "[asan+ubsan] no report"
