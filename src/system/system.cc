@@ -49,6 +49,7 @@ void SystemOptions::validate() const {
   semantics.validate();
   tracker.validate();
   mapping.validate();
+  loop.validate();
   if (frame_queue < 1) throw OptionError("frame_queue", "must be >= 1");
   if (mapping_queue < 1) throw OptionError("mapping_queue", "must be >= 1");
 }
@@ -75,6 +76,8 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
+  // Monocular maps need Sim(3) loops (scale drift), which do not exist yet.
+  if (isMonocular(options.mode)) options.loop.enabled = false;
   // Stereo rigs triangulate between keyframes only what stereo cannot measure.
   options.mapping.triangulation.skip_stereo_keypoints = !isMonocular(options.mode);
   applyClassWiseMatching(options);
@@ -102,6 +105,15 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
   if (!isMonocular(options_.mode) && !cam1) {
     throw OptionError("--mode", toString(options_.mode) + " needs a second camera");
   }
+  if (options_.loop.enabled) {
+    mapping::PointFusionOptions fusion = options_.mapping.fusion;
+    fusion.sigma0_px = options_.mapping.sigma0_px;
+    const CameraModel camera0 = cam0.cameraModel();
+    loop_ = std::make_unique<LoopStage>(options_.loop, camera0,
+                                        optim::ReprojectionCamera::from(camera0, cam0.T_b_c),
+                                        fusion, options_.tracker.pose);
+    tracker_.setKeyFrameObserver(loop_.get());
+  }
   if (!options_.deterministic) {
     mapping_ = std::make_unique<MappingWorker>(static_cast<std::size_t>(options_.mapping_queue));
     tracker_.setMappingSink(mapping_.get());
@@ -119,12 +131,37 @@ void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
           mapping::transformBodyPose(*result.world_change, trajectory_[i].T_w_x, tracker_.T_b_c0());
     }
   }
-  if (result.state == tracking::TrackingState::kInitialized) map_start_ = trajectory_.size();
+  if (result.state == tracking::TrackingState::kInitialized) {
+    map_start_ = trajectory_.size();
+    corrections_followed_ = 0;
+  }
   if (result.state == tracking::TrackingState::kInitializing) {
     ++initializing_frames_;
   } else {
     trajectory_.push_back({t_ns, result.T_w_b});
+    trajectory_corrections_.push_back(result.map_corrections);
   }
+  followMapCorrections();
+}
+
+void System::followMapCorrections() {
+  if (!tracker_.hasMap()) return;
+  const std::vector<map::MapCorrection> corrections =
+      tracker_.map().correctionsSince(corrections_followed_);
+  for (std::size_t k = 0; k < corrections.size(); ++k) {
+    const int generation = corrections_followed_ + static_cast<int>(k);
+    for (std::size_t i = map_start_; i < trajectory_.size(); ++i) {
+      if (trajectory_corrections_[i] > generation) continue;
+      trajectory_[i].T_w_x =
+          corrections[k].correctionAt(trajectory_[i].t_ns) * trajectory_[i].T_w_x;
+      trajectory_corrections_[i] = generation + 1;
+    }
+  }
+  corrections_followed_ += static_cast<int>(corrections.size());
+}
+
+LoopSummary System::loopSummary() const {
+  return loop_ ? loop_->summary() : LoopSummary{};
 }
 
 sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {
@@ -258,6 +295,7 @@ void System::finish() {
     timings_.total.local_ba_ms += mapping_->busyMs() - mapping_wall_ms_;
     mapping_wall_ms_ = mapping_->busyMs();
     timings_.busy.mapping_ms = mapping_->cpuMs();
+    followMapCorrections();  // loops corrected by the last mapping jobs move the trajectory too
   };
   try {
     mapping_->finish();
