@@ -232,10 +232,12 @@ void printLoops(const system::System& slam, const Trajectory& gt) {
     return loops.keyframes > 0 ? ms / static_cast<double>(loops.keyframes) : 0.0;
   };
   fmt::print(
-      "loop closing: {} loops accepted ({} keyframes queried, {} candidates verified); per "
-      "keyframe: detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion "
-      "{:.1f} ms per loop; index {} descriptors ({:.1f} MB)\n",
-      loops.loops.size(), loops.keyframes, loops.verifications, perKeyFrame(loops.detection_ms),
+      "loop closing: {} loops accepted ({} keyframes queried, {} candidates verified, rejected: "
+      "{} too few matches, {} no transform, {} too few inliers, {} tilted); per keyframe: "
+      "detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion {:.1f} ms "
+      "per loop; index {} descriptors ({:.1f} MB)\n",
+      loops.loops.size(), loops.keyframes, loops.verifications, loops.rejected[0],
+      loops.rejected[1], loops.rejected[2], loops.rejected[3], perKeyFrame(loops.detection_ms),
       perKeyFrame(loops.verification_ms),
       loops.loops.empty() ? 0.0 : loops.correction_ms / static_cast<double>(loops.loops.size()),
       loops.index_descriptors, static_cast<double>(loops.index_bytes) / 1e6);

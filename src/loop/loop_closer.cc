@@ -216,8 +216,10 @@ LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bo
   for (const Candidate& candidate : consistent) {
     if (step.candidates >= options_.max_candidates) break;
     ++step.candidates;
-    verified = verify(map, *query, candidate.id, inertial);
+    Rejection rejection = Rejection::kTooFewMatches;
+    verified = verify(map, *query, candidate.id, inertial, rejection);
     if (verified) break;
+    ++step.rejected[static_cast<int>(rejection)];
   }
   step.verification_ms = millisecondsSince(start);
   if (!verified) return step;
@@ -327,8 +329,8 @@ std::vector<LoopCloser::Candidate> LoopCloser::consistentCandidates(
 
 std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
                                                        const map::KeyFrame& query,
-                                                       map::KeyFrameId candidate,
-                                                       bool inertial) const {
+                                                       map::KeyFrameId candidate, bool inertial,
+                                                       Rejection& rejection) const {
   const map::Map::ReadLock reading = map.readLock();  // one state of the loop's points
   Verified out;
   out.match = candidate;
@@ -366,6 +368,7 @@ std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
     const Eigen::Vector2d error = focal * (p_c.head<2>() / p_c.z() - k.normalized);
     return error.squaredNorm() < options_.ransac_chi2 * sigma * sigma;
   };
+  rejection = Rejection::kNoTransform;
   const std::optional<RigidRansacResult> ransac = ransacRigid(a, b, is_inlier, options_.ransac);
   if (!ransac) return std::nullopt;
   std::vector<optim::PoseObservation> observations;
@@ -379,6 +382,7 @@ std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
       pose_optimizer_.optimize(ransac->T_a_b * camera_.T_b_c.inverse(), cameras, observations);
   if (!first.success) return std::nullopt;
 
+  rejection = Rejection::kTooFewInliers;
   // Guided matching: every loop point projected from the verified pose into the query keyframe.
   features::FeatureSet train;
   train.descriptor_type = descriptorType(query.descriptors);
@@ -435,6 +439,7 @@ std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
     // Gravity observes roll and pitch: a loop that changes them is wrong; keep yaw and position.
     const Eigen::Matrix3d R_correction =
         out.T_w_b_query.rotation() * query.T_w_b.rotation().transpose();
+    rejection = Rejection::kTilted;
     if (tiltDegrees(R_correction) > options_.max_roll_pitch_deg) return std::nullopt;
     out.T_w_b_query =
         SE3d(yawRotation(yawOf(R_correction)) * query.T_w_b.rotation(), out.T_w_b_query.t);

@@ -7,6 +7,8 @@ void LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial)
   const std::lock_guard lock(mutex_);
   ++summary_.keyframes;
   summary_.verifications += static_cast<std::size_t>(step.candidates);
+  for (int k = 0; k < loop::kRejectionKinds; ++k)
+    summary_.rejected[k] += static_cast<std::size_t>(step.rejected[k]);
   summary_.detection_ms += step.detection_ms;
   summary_.verification_ms += step.verification_ms;
   summary_.correction_ms += step.correction_ms;

@@ -85,9 +85,19 @@ struct LoopClosure {
   SE3d correction;
 };
 
+/// Why the verification of a candidate stopped.
+enum class Rejection {
+  kTooFewMatches,  ///< Descriptor matches (or loop points) below the RANSAC's min_inliers.
+  kNoTransform,    ///< RANSAC or the first motion-only BA found no pose.
+  kTooFewInliers,  ///< Fewer than min_inliers after guided matching.
+  kTilted,         ///< Inertial map: the correction would change roll / pitch.
+};
+inline constexpr int kRejectionKinds = 4;
+
 /// What one processKeyFrame() call did, with its stage times [ms].
 struct LoopStep {
-  int candidates = 0;  ///< Consistent groups verified.
+  int candidates = 0;                  ///< Consistent groups verified.
+  int rejected[kRejectionKinds] = {};  ///< Candidates rejected, by Rejection.
   std::optional<LoopClosure> closure;
   double detection_ms = 0.0;
   double verification_ms = 0.0;
@@ -123,8 +133,10 @@ class LoopCloser {
   std::vector<Candidate> detect(const map::Map& map, const map::KeyFrame& query);
   std::vector<Candidate> consistentCandidates(const map::Map& map,
                                               const std::vector<Candidate>& groups);
+  /// The verified loop, or nullopt with `rejection` set.
   std::optional<Verified> verify(const map::Map& map, const map::KeyFrame& query,
-                                 map::KeyFrameId candidate, bool inertial) const;
+                                 map::KeyFrameId candidate, bool inertial,
+                                 Rejection& rejection) const;
   void correct(map::Map& map, const map::KeyFrame& query, const Verified& loop, bool inertial);
   void fuseLoop(map::Map& map, const map::KeyFrame& query, const Verified& loop) const;
 

@@ -16,13 +16,14 @@ namespace superdyna::system {
 
 /// What loop closing did over a run.
 struct LoopSummary {
-  std::size_t keyframes = 0;             ///< Keyframes queried.
-  std::size_t verifications = 0;         ///< Consistent candidates geometrically verified.
-  std::vector<loop::LoopClosure> loops;  ///< Accepted (and corrected) loops.
-  double detection_ms = 0.0;             ///< Summed: database query and consistency check.
-  double verification_ms = 0.0;          ///< Summed: matching, RANSAC, guided matching.
-  double correction_ms = 0.0;            ///< Summed: pose graph, point correction, fusion.
-  std::size_t index_descriptors = 0;     ///< Descriptors in the database at the end.
+  std::size_t keyframes = 0;      ///< Keyframes queried.
+  std::size_t verifications = 0;  ///< Consistent candidates geometrically verified.
+  std::size_t rejected[loop::kRejectionKinds] = {};  ///< ... and rejected, by loop::Rejection.
+  std::vector<loop::LoopClosure> loops;              ///< Accepted (and corrected) loops.
+  double detection_ms = 0.0;          ///< Summed: database query and consistency check.
+  double verification_ms = 0.0;       ///< Summed: matching, RANSAC, guided matching.
+  double correction_ms = 0.0;         ///< Summed: pose graph, point correction, fusion.
+  std::size_t index_descriptors = 0;  ///< Descriptors in the database at the end.
   std::size_t index_bytes = 0;
 };
 
