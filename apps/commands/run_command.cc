@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -272,6 +274,67 @@ void reportImuGap(const tracking::ImuGap& gap, TimeNs frame_t_ns, double max_gap
   std::fflush(stdout);
 }
 
+/// The ground-truth pose nearest in time to t_ns (within 20 ms), if any.
+std::optional<SE3d> groundTruthAt(const Trajectory& gt, TimeNs t_ns) {
+  const auto after = std::lower_bound(gt.begin(), gt.end(), t_ns,
+                                      [](const StampedPose& p, TimeNs t) { return p.t_ns < t; });
+  std::optional<StampedPose> best;
+  for (auto it : {after, after == gt.begin() ? gt.end() : std::prev(after)}) {
+    if (it == gt.end()) continue;
+    if (!best || std::llabs(it->t_ns - t_ns) < std::llabs(best->t_ns - t_ns)) best = *it;
+  }
+  if (!best || std::llabs(best->t_ns - t_ns) > 20'000'000) return std::nullopt;
+  return best->T_w_x;
+}
+
+/// Loops accepted, stage times and, with a ground truth, each loop's relative-pose error (the
+/// verified T_match_query against the true one): a loop off by more than 0.5 m or 5 degrees is
+/// called false.
+void printLoops(const system::System& slam, const Trajectory& gt) {
+  if (!slam.options().loop.enabled) {
+    fmt::print("loop closing: off\n");
+    return;
+  }
+  const system::LoopSummary loops = slam.loopSummary();
+  const auto perKeyFrame = [&](double ms) {
+    return loops.keyframes > 0 ? ms / static_cast<double>(loops.keyframes) : 0.0;
+  };
+  fmt::print(
+      "loop closing: {} loops accepted ({} keyframes queried, {} candidates verified, rejected: "
+      "{} too few matches, {} no transform, {} too few inliers, {} tilted); per keyframe: "
+      "detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion {:.1f} ms "
+      "per loop; index {} descriptors ({:.1f} MB)\n",
+      loops.loops.size(), loops.keyframes, loops.verifications, loops.rejected[0],
+      loops.rejected[1], loops.rejected[2], loops.rejected[3], perKeyFrame(loops.detection_ms),
+      perKeyFrame(loops.verification_ms),
+      loops.loops.empty() ? 0.0 : loops.correction_ms / static_cast<double>(loops.loops.size()),
+      loops.index_descriptors, static_cast<double>(loops.index_bytes) / 1e6);
+  int false_loops = 0;
+  int checked = 0;
+  for (const loop::LoopClosure& l : loops.loops) {
+    std::string truth = "no ground truth";
+    const std::optional<SE3d> gt_query = groundTruthAt(gt, l.query_t_ns);
+    const std::optional<SE3d> gt_match = groundTruthAt(gt, l.match_t_ns);
+    if (gt_query && gt_match) {
+      const SE3d error = (gt_match->inverse() * *gt_query).inverse() * l.T_match_query;
+      const double angle_deg = rotationAngle(error.rotation()) * 180.0 / M_PI;
+      const bool wrong = error.t.norm() > 0.5 || angle_deg > 5.0;
+      ++checked;
+      false_loops += wrong ? 1 : 0;
+      truth = fmt::format("relative pose error {:.3f} m, {:.2f} deg{}", error.t.norm(), angle_deg,
+                          wrong ? " (FALSE LOOP)" : "");
+    }
+    fmt::print(
+        "  loop: keyframe at {:.2f} s -> {:.2f} s, {} inliers, correction {:.3f} m / "
+        "{:.2f} deg; {}\n",
+        nsToSeconds(l.query_t_ns), nsToSeconds(l.match_t_ns), l.inliers, l.correction.t.norm(),
+        rotationAngle(l.correction.rotation()) * 180.0 / M_PI, truth);
+  }
+  if (checked > 0)
+    fmt::print("loop closing: {} of {} loops false against the ground truth\n", false_loops,
+               checked);
+}
+
 class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
@@ -329,6 +392,11 @@ class RunCommand : public Command {
     sub_->add_option("--overlay-every", overlay_every_, "Overlay every N-th frame")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    sub_->add_option("--loop-closing", loop_closing_,
+                     "Loop closing (overrides loop.enabled): on | off. Stereo and "
+                     "stereo-inertial only; monocular modes run without it (their loops need "
+                     "Sim(3), not implemented yet)")
+        ->check(CLI::IsMember({"on", "off"}));
     sub_->add_flag("--deterministic", deterministic_,
                    "Sequential, single-threaded run: bit-identical output for the same input "
                    "(default: concurrent front end, tracking and local mapping threads)");
@@ -441,6 +509,12 @@ class RunCommand : public Command {
                                     "--instance-masks or --segmenter",
                                     dynamic::toString(options.tracker.dynamic.mode)));
     }
+    if (loop_closing_) {
+      if (*loop_closing_ == "on" && system::isMonocular(options.mode)) {
+        throw OptionError("--loop-closing", "monocular modes have no loop closing yet (Sim(3))");
+      }
+      options.loop.enabled = *loop_closing_ == "on";
+    }
     options.deterministic = deterministic_;
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
@@ -523,6 +597,7 @@ class RunCommand : public Command {
                  t.meanMs(t.segment_ms));
     }
     printMatchCounts(slam);
+    printLoops(slam, source->groundTruth());
     printAccuracy(source->groundTruth(), slam.onlineTrajectory(), eval::AlignmentMode::kSE3,
                   "ATE of the poses as tracked");
     printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSE3);
@@ -553,6 +628,7 @@ class RunCommand : public Command {
   bool instance_masks_ = false;
   std::optional<fs::path> overlay_dir_;
   int overlay_every_ = 10;
+  std::optional<std::string> loop_closing_;
   bool deterministic_ = false;
 };
 

@@ -335,6 +335,30 @@ void Map::transformWorld(const Sim3d& S_new_old) {
   }
 }
 
+SE3d MapCorrection::correctionAt(TimeNs t_ns) const {
+  if (keyframes.empty()) return SE3d();
+  const auto after = std::upper_bound(
+      keyframes.begin(), keyframes.end(), t_ns,
+      [](TimeNs t, const std::pair<TimeNs, SE3d>& keyframe) { return t < keyframe.first; });
+  return after == keyframes.begin() ? keyframes.front().second : std::prev(after)->second;
+}
+
+void Map::recordCorrection(MapCorrection correction) {
+  const std::lock_guard lock(mutex_);
+  corrections_.push_back(std::move(correction));
+}
+
+int Map::correctionCount() const {
+  const std::lock_guard lock(mutex_);
+  return static_cast<int>(corrections_.size());
+}
+
+std::vector<MapCorrection> Map::correctionsSince(int first) const {
+  const std::lock_guard lock(mutex_);
+  if (first < 0 || first >= static_cast<int>(corrections_.size())) return {};
+  return {corrections_.begin() + first, corrections_.end()};
+}
+
 bool Map::setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w) {
   const std::lock_guard lock(mutex_);
   MapPoint* point = findPoint(id);

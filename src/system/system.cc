@@ -49,6 +49,7 @@ void SystemOptions::validate() const {
   semantics.validate();
   tracker.validate();
   mapping.validate();
+  loop.validate();
   if (frame_queue < 1) throw OptionError("frame_queue", "must be >= 1");
   if (mapping_queue < 1) throw OptionError("mapping_queue", "must be >= 1");
 }
@@ -75,6 +76,8 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
+  // Monocular maps need Sim(3) loops (scale drift), which do not exist yet.
+  if (isMonocular(options.mode)) options.loop.enabled = false;
   // Stereo rigs triangulate between keyframes only what stereo cannot measure.
   options.mapping.triangulation.skip_stereo_keypoints = !isMonocular(options.mode);
   applyClassWiseMatching(options);
@@ -101,6 +104,15 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
   }
   if (!isMonocular(options_.mode) && !cam1) {
     throw OptionError("--mode", toString(options_.mode) + " needs a second camera");
+  }
+  if (options_.loop.enabled) {
+    mapping::PointFusionOptions fusion = options_.mapping.fusion;
+    fusion.sigma0_px = options_.mapping.sigma0_px;
+    const CameraModel camera0 = cam0.cameraModel();
+    loop_ = std::make_unique<LoopStage>(options_.loop, camera0,
+                                        optim::ReprojectionCamera::from(camera0, cam0.T_b_c),
+                                        fusion, options_.tracker.pose);
+    tracker_.setKeyFrameObserver(loop_.get());
   }
   if (!options_.deterministic) {
     mapping_ = std::make_unique<MappingWorker>(static_cast<std::size_t>(options_.mapping_queue));
@@ -159,6 +171,10 @@ Trajectory System::onlineTrajectory() const {
   for (const FrameRecord& frame : frames_)
     trajectory.push_back(frame.online);
   return trajectory;
+}
+
+LoopSummary System::loopSummary() const {
+  return loop_ ? loop_->summary() : LoopSummary{};
 }
 
 sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {

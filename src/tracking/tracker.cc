@@ -215,7 +215,10 @@ TrackingResult Tracker::track(const Frame& input) {
   // the mapping thread entirely or not at all. Without a map it reads none, and starting a map
   // waits for the mapping thread, which must not find the lock held.
   map::Map::ReadLock reading;
-  if (has_map_) reading = map_->readLock();
+  if (has_map_) {
+    reading = map_->readLock();
+    followMapCorrections();  // a loop closed since the last frame: its pose moves with the map
+  }
   const Prediction prediction = predictPose(input, imu_usable);
   result.T_w_b = prediction.T_w_b;
   std::vector<int> kept;
@@ -263,6 +266,7 @@ TrackingResult Tracker::track(const Frame& input) {
     result.T_w_reference = result.T_w_b;
   }
   rememberFrame(input, kept, has_map_ ? tracked : std::vector<map::MapPointId>{});
+  if (has_map_) followMapCorrections(&result.T_w_b);
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
 }
@@ -278,6 +282,27 @@ bool Tracker::collectImu(const Frame& frame, TrackingResult& result) {
   if (gap->t1_ns != last_imu_gap_end_ns_) result.imu_gap = gap;  // every frame in it meets it
   last_imu_gap_end_ns_ = gap->t1_ns;
   return false;
+}
+
+SE3d Tracker::followMapCorrections(SE3d* pose) {
+  SE3d total;
+  const std::vector<map::MapCorrection> corrections = map_->correctionsSince(corrections_followed_);
+  for (const map::MapCorrection& correction : corrections) {
+    const SE3d C = correction.correctionAt(t_last_ns_);
+    T_w_b_last_ = C * T_w_b_last_;
+    velocity_w_ = C.rotation() * velocity_w_;
+    if (pose) *pose = C * *pose;
+    total = C * total;
+  }
+  corrections_followed_ += static_cast<int>(corrections.size());
+  return total;
+}
+
+bool Tracker::mapSettled() const {
+  if (!imu_ || !mapper_.options().inertial) return true;
+  return inertial_inits_ > 0 &&
+         !mapper_.inertialStageDue(inertial_inits_, std::numeric_limits<double>::infinity(),
+                                   std::numeric_limits<int>::max());
 }
 
 void Tracker::initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result) {
@@ -438,14 +463,22 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
   if (prediction.inertial) v_w = prediction.inertial->v_w;
   const map::KeyFrameId id = insertKeyFrame(frame, result.T_w_b, tracked, v_w);
   result.keyframe = true;
+  KeyFrameObserver* observer = mapSettled() ? observer_ : nullptr;
+  const bool inertial = inertialInitialized();
+  const auto job = [this, map = map_.get(), id, observer, inertial] {
+    mapper_.processKeyFrame(*map, id);
+    if (observer) observer->keyFrameMapped(*map, id, inertial);
+  };
   if (mapping_sink_) {
-    mapping_sink_->submit([this, map = map_.get(), id] { mapper_.processKeyFrame(*map, id); });
+    mapping_sink_->submit(job);
     if (options_.mono_inertial_wait_for_keyframe_ba && isMonocular() && inertialInitialized()) {
       mapping_sink_->waitIdle();  // the next predictions start from this keyframe's refined state
+      followMapCorrections();     // the keyframe's pose below already has them
       result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
     }
   } else {
-    mapper_.processKeyFrame(*map_, id);
+    job();
+    followMapCorrections();  // the keyframe's pose below already has them
     result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
   }
   initializeInertialIfDue(result);
@@ -552,10 +585,15 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   if (mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
   if (map_->numKeyFrames() > 0) ++resets_;
   map_ = newMap();
-  runMapping([this] { mapper_.reset(); });
+  runMapping([this] {
+    mapper_.reset();
+    if (observer_) observer_->mapReset();
+  });
+  corrections_followed_ = 0;
   inertial_inits_ = 0;
   bias_ = {};
-  insertKeyFrame(frame, T_w_b, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
+  SE3d pose = T_w_b;
+  insertKeyFrame(frame, pose, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   has_map_ = true;
 }
 
@@ -712,7 +750,7 @@ int Tracker::referenceTrackedPoints() const {
   return tracked;
 }
 
-map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
+map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, SE3d& T_w_b,
                                         const std::vector<map::MapPointId>& tracked,
                                         const std::optional<Eigen::Vector3d>& v_w) {
   map::KeyFrame kf;
@@ -745,6 +783,10 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
   std::vector<map::MapPointId> created;
   {
     const map::Map::UpdateLock update = map_->updateLock();  // the keyframe with its new points
+    // A loop corrected since the frame was tracked: the keyframe joins the corrected map.
+    const SE3d correction = followMapCorrections(&T_w_b);
+    kf.T_w_b = T_w_b;
+    kf.v_w = correction.rotation() * kf.v_w;
     id = map_->addKeyFrame(std::move(kf));
     created = createStereoPoints(frame, T_w_b, id, tracked);
   }

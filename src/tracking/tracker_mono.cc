@@ -39,8 +39,9 @@ bool Tracker::buildMonoMap(const MonoInitialization& init, const Frame& frame,
   const SE3d T_w_b1 = T_w_c0 * init.T_c0_c1 * T_b_c0_.inverse();
   startMap(init.reference, T_w_b0);
   const map::KeyFrameId first = reference_;
+  SE3d pose1 = T_w_b1;
   const map::KeyFrameId second =
-      insertKeyFrame(frame, T_w_b1, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
+      insertKeyFrame(frame, pose1, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
   for (const MonoInitialization::Point& p : init.points) {
     const auto current = static_cast<std::size_t>(p.current_index);
     map::MapPoint point;

@@ -642,5 +642,27 @@ TEST(MapTest, AnErasedKeyFrameFollowsAScaledChangeOfTheWorld) {
   EXPECT_LT(resolved.q.angularDistance(expected.q), 1e-12);
 }
 
+TEST(MapCorrections, AreLoggedAndLookedUpByTime) {
+  Map map;
+  EXPECT_EQ(map.correctionCount(), 0);
+  EXPECT_TRUE(map.correctionsSince(0).empty());
+  MapCorrection correction;
+  const SE3d a(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0));
+  const SE3d b(Eigen::Quaterniond::Identity(), Eigen::Vector3d(2, 0, 0));
+  correction.keyframes = {{100, a}, {200, b}};
+  EXPECT_EQ(correction.correctionAt(50).t.x(), 1.0);   // before all: the first
+  EXPECT_EQ(correction.correctionAt(150).t.x(), 1.0);  // the keyframe before
+  EXPECT_EQ(correction.correctionAt(200).t.x(), 2.0);
+  EXPECT_EQ(correction.correctionAt(900).t.x(), 2.0);
+  EXPECT_EQ(MapCorrection{}.correctionAt(5).t.norm(), 0.0);
+  map.recordCorrection(correction);
+  map.recordCorrection(MapCorrection{});
+  EXPECT_EQ(map.correctionCount(), 2);
+  EXPECT_EQ(map.correctionsSince(0).size(), 2u);
+  ASSERT_EQ(map.correctionsSince(1).size(), 1u);
+  EXPECT_TRUE(map.correctionsSince(1).front().keyframes.empty());
+  EXPECT_TRUE(map.correctionsSince(2).empty());
+}
+
 }  // namespace
 }  // namespace superdyna::map

@@ -197,6 +197,32 @@ semantics:
   pedestrian_labels: "person,rider"
   vehicle_labels: "car,truck"
   other_movable_labels: "dog"
+loop:
+  enabled: false
+  database_neighbours: 3
+  database_max_descriptors: 300
+  database_max_hamming: 55
+  database_min_similarity: 0.7
+  min_time_gap_s: 8
+  min_score: 0.03
+  group_keyframes: 8
+  consistency: 2
+  max_candidates: 2
+  keyframes_between_loops: 4
+  match_max_hamming: 45
+  match_max_l2: 0.8
+  match_ratio: 0.8
+  ransac_iterations: 250
+  ransac_min_inliers: 15
+  ransac_seed: 9
+  ransac_chi2: 7.5
+  guided_radius_px: 6
+  min_inliers: 50
+  max_roll_pitch_deg: 1.5
+  pose_graph_iterations: 15
+  pose_graph_rotation_weight: 2
+  strong_covisibility: 80
+  fuse: false
 pipeline:
   frame_queue: 3
   mapping_queue: 8
@@ -228,7 +254,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 168u);  // every key of the eleven sections
+  EXPECT_EQ(written.size(), 193u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -81,6 +81,19 @@ struct CovisibleKeyFrame {
 std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
                                            const std::vector<io::ImuSample>& later);
 
+/// A correction of the map's keyframes that does not move the world as a whole (a loop closure's
+/// pose graph): each listed keyframe moved by C (T_w_b_new = C * T_w_b_old). Poses held outside
+/// the map (the tracker's last frame, the recorded frame trajectory) follow it with the
+/// correction of the keyframe nearest before them in time (correctionAt()).
+struct MapCorrection {
+  /// (keyframe time, C) of every corrected keyframe, by increasing time.
+  std::vector<std::pair<TimeNs, SE3d>> keyframes;
+
+  /// C of the keyframe with the latest time <= t_ns (the first one before all; identity when
+  /// empty).
+  SE3d correctionAt(TimeNs t_ns) const;
+};
+
 class Map {
  public:
   /// Validates the options (OptionError).
@@ -161,6 +174,13 @@ class Map {
   /// scale. Map points move; normals rotate; distance ranges and velocities scale by s (velocities
   /// also rotate).
   void transformWorld(const Sim3d& S_new_old);
+  /// Appends a correction to the map's log (call within the map update that applied it).
+  void recordCorrection(MapCorrection correction);
+  /// Number of corrections recorded: poses held outside the map that are expressed in the map as
+  /// of generation g follow the corrections [g, correctionCount()).
+  int correctionCount() const;
+  /// The corrections from generation `first` on (empty when none).
+  std::vector<MapCorrection> correctionsSince(int first) const;
   /// Stores a copy (clone) of one descriptor row.
   bool setMapPointDescriptor(MapPointId id, const cv::Mat& descriptor);
   /// Sets the point's descriptor to its most representative observation, as ORB-SLAM does: of
@@ -285,6 +305,7 @@ class Map {
     SE3d T_ca_c;
   };
   std::unordered_map<KeyFrameId, ErasedKeyFrame> erased_;
+  std::vector<MapCorrection> corrections_;
   KeyFrameId next_keyframe_id_ = 0;
   KeyFrameId newest_keyframe_ = kNoKeyFrame;
   MapPointId next_point_id_ = 0;

@@ -27,8 +27,10 @@
 
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
+#include "superdyna/loop/loop_closer.h"
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/semantics/segmenter.h"
+#include "superdyna/system/loop_stage.h"
 #include "superdyna/system/mapping_worker.h"
 #include "superdyna/tracking/front_end.h"
 #include "superdyna/tracking/tracker.h"
@@ -51,6 +53,9 @@ struct SystemOptions {
   mapping::LocalMapperOptions mapping;
   /// Instance segmentation (section `semantics`); the System runs the segmenter it is given.
   semantics::SegmenterOptions semantics;
+  /// Loop closing (section `loop`). Stereo and stereo-inertial only: the System turns it off for
+  /// monocular modes (their maps need Sim(3) loops, not implemented yet).
+  loop::LoopClosingOptions loop;
   bool deterministic = true;  ///< Sequential pipeline; false = concurrent (see above).
   int frame_queue = 2;        ///< Concurrent: frames the front end may build ahead, >= 1.
   int mapping_queue = 16;     ///< Concurrent: mapping jobs (2 per keyframe) that may wait, >= 1.
@@ -64,8 +69,8 @@ struct SystemOptions {
 void applyClassWiseMatching(SystemOptions& options);
 
 /// Reads a YAML options file (sections `features`, `orb`, `stereo`, `projection`, `pose`,
-/// `tracker`, `dynamic`, `mono_init`, `mapping`, `semantics`, `pipeline`) over `defaults`; an
-/// unknown section or key is an InputError naming file and key.
+/// `tracker`, `dynamic`, `mono_init`, `mapping`, `semantics`, `loop`, `pipeline`) over `defaults`;
+/// an unknown section or key is an InputError naming file and key.
 SystemOptions loadSystemOptions(const std::filesystem::path& file, SystemOptions defaults = {});
 
 /// The options as an options file that loadSystemOptions reads back to the same values: every key
@@ -175,6 +180,8 @@ class System {
   std::map<int, std::size_t> mapPointsPerInstance() const;
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return tracker_.inertialInitialized(); }
+  /// Loop closing over the run so far (all zero when off); call after finish() for the final one.
+  LoopSummary loopSummary() const;
 
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);
@@ -200,6 +207,8 @@ class System {
   std::unique_ptr<semantics::Segmenter> segmenter_;
   FrontEndCallback front_end_callback_;
   double segment_ms_ = 0.0;  ///< Front-end thread's segmentation time, copied to timings_.
+  /// Declared before mapping_ (destroyed after it): the mapping jobs call it.
+  std::unique_ptr<LoopStage> loop_;
   tracking::Tracker tracker_;
   /// Declared after tracker_ (destroyed first): its jobs use the tracker.
   std::unique_ptr<MappingWorker> mapping_;

@@ -205,6 +205,20 @@ class MappingSink {
   virtual bool busy() const = 0;
 };
 
+/// Told about each keyframe of a map once local mapping has processed it, in the thread that runs
+/// the mapping jobs (inside track() without a MappingSink): the loop closer. It may change the
+/// map (as one map update) and record the change with map::Map::recordCorrection(); the tracker
+/// moves its own state (last pose, velocity) and the poses it reports with it.
+class KeyFrameObserver {
+ public:
+  virtual ~KeyFrameObserver() = default;
+  /// Only for keyframes of maps that will not move as a whole any more: visual maps, and inertial
+  /// ones once every inertial (re-)initialisation stage has run (`inertial` then true).
+  virtual void keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) = 0;
+  /// The tracker drops its map: forget everything about it.
+  virtual void mapReset() = 0;
+};
+
 class Tracker {
  public:
   /// cam1 absent = monocular rig.
@@ -230,6 +244,8 @@ class Tracker {
   /// once). With a sink, track() does not wait for local BA, so the pose of a new keyframe's frame
   /// is the tracked one, not the one local BA refines.
   void setMappingSink(MappingSink* sink) { mapping_sink_ = sink; }
+  /// Calls `observer` (not owned, must outlive its use; nullptr = none) from the mapping jobs.
+  void setKeyFrameObserver(KeyFrameObserver* observer) { observer_ = observer; }
 
  private:
   struct LocalPoint {
@@ -334,7 +350,13 @@ class Tracker {
   /// busy mapper first; see mono_wait_for_mapping for when it is refused instead).
   bool mappingAcceptsKeyFrame(const Frame& frame, int inliers);
   int referenceTrackedPoints() const;
-  map::KeyFrameId insertKeyFrame(const Frame& frame, const SE3d& T_w_b,
+  /// Moves the tracker's last pose and velocity (and *pose, when given) by the map corrections
+  /// recorded since the last call (the loop closer's); returns their composition.
+  SE3d followMapCorrections(SE3d* pose = nullptr);
+  /// Whether the keyframe observer may see this map's keyframes (see KeyFrameObserver).
+  bool mapSettled() const;
+  /// Inserts the keyframe at T_w_b, first moved by any map correction not followed yet.
+  map::KeyFrameId insertKeyFrame(const Frame& frame, SE3d& T_w_b,
                                  const std::vector<map::MapPointId>& tracked,
                                  const std::optional<Eigen::Vector3d>& v_w = std::nullopt);
   std::vector<map::MapPointId> createStereoPoints(const Frame& frame, const SE3d& T_w_b,
@@ -361,6 +383,8 @@ class Tracker {
   std::unique_ptr<map::Map> map_;
   mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).
   MappingSink* mapping_sink_ = nullptr;
+  KeyFrameObserver* observer_ = nullptr;
+  int corrections_followed_ = 0;  ///< Of the current map's recorded corrections.
 
   bool has_map_ = false;
   bool has_last_ = false;

@@ -1,0 +1,155 @@
+#pragma once
+// Loop closing for stereo and stereo-inertial maps (SE(3) geometry), run after local mapping of
+// each keyframe (ORB-SLAM's loop closing, written anew without a vocabulary).
+//
+// 1. Detection: the keyframe's place descriptors query the KeyFrameDatabase (then join it). The
+//    keyframes it shares map points with, and those less than min_time_gap_s older, are no
+//    candidates; a candidate must score at least as high as the least similar of the query's
+//    best covisible keyframes (ORB-SLAM's relative bar) and min_score. Candidates are grouped with
+//    their covisible neighbours (accumulated score >= 0.75 of the best group's), and a group is
+//    only verified once `consistency` consecutive query keyframes found overlapping groups.
+// 2. Verification: the query keyframe's keypoints with 3D (stereo depth, else their map point)
+//    are matched by descriptor to the map points of the candidate and its best covisible
+//    keyframes; RANSAC on the 3D-3D matches (rigid_ransac.h, inliers by reprojection into the
+//    query keyframe) gives the query camera's pose in the loop's frame, refined by motion-only BA;
+//    then guided matching by projection and a second motion-only BA. Accepted with at least
+//    min_inliers inliers. Inertial maps: the correction must leave roll and pitch within
+//    max_roll_pitch_deg (gravity observes them); it is then reduced to yaw and position.
+// 3. Correction: pose graph (pose_graph.h; 4-DoF for inertial maps, 6-DoF otherwise) over the
+//    essential graph: the temporal chain of keyframes (their spanning tree), covisibility edges of
+//    at least strong_covisibility shared points, the edges of earlier loops and the new loop's
+//    (the query keyframe's group at its corrected poses to the loop keyframe and its group); the
+//    loop keyframe is held. Each keyframe moves by its correction C (T_new = C T_old), each map
+//    point with its reference (oldest observing) keyframe's, velocities rotate. All of it is one
+//    map update (Map::updateLock()) and is recorded in the map (Map::recordCorrection) for the
+//    poses held outside it. Keyframes inserted while the graph was optimised move with the newest
+//    graph keyframe. Then the loop's duplicated points are fused: the verified matches make the
+//    query keyframe observe the loop's points (its own duplicates merged into them), and the
+//    PointFuser runs on the query keyframe's group.
+//
+// Features labelled on movable objects (class_id != 0) neither vote nor take part in the
+// verification. Not thread-safe: one thread calls processKeyFrame (the System runs it where local
+// mapping runs).
+
+#include <optional>
+#include <vector>
+
+#include "superdyna/core/camera_model.h"
+#include "superdyna/core/time.h"
+#include "superdyna/loop/keyframe_database.h"
+#include "superdyna/loop/pose_graph.h"
+#include "superdyna/loop/rigid_ransac.h"
+#include "superdyna/map/map.h"
+#include "superdyna/mapping/point_fusion.h"
+#include "superdyna/optim/pose_optimizer.h"
+#include "superdyna/optim/reprojection_factor.h"
+
+namespace superdyna::loop {
+
+struct LoopClosingOptions {
+  bool enabled = true;  ///< Run loop closing (stereo and stereo-inertial maps).
+  KeyFrameDatabaseOptions database;
+  double min_time_gap_s = 10.0;  ///< Candidates are at least this much older [s], >= 0.
+  double min_score = 0.02;       ///< Absolute bar on the database score, [0, 1].
+  int group_keyframes = 10;      ///< Covisible keyframes of a candidate's group, >= 0.
+  int consistency = 3;           ///< Consecutive keyframes that must find a group, >= 1.
+  int max_candidates = 3;        ///< Consistent groups verified per keyframe (best first), >= 1.
+  /// Keyframes after an accepted loop before the next detection, >= 0.
+  int keyframes_between_loops = 5;
+  int match_max_hamming = 50;     ///< Descriptor matching bound, binary [bits], >= 0.
+  double match_max_l2 = 0.9;      ///< ... float (Euclidean), >= 0.
+  double match_ratio = 0.85;      ///< Lowe's ratio test of the descriptor matching, (0, 1].
+  RigidRansacOptions ransac;      ///< Its min_inliers: the RANSAC's bar (default 12).
+  double ransac_chi2 = 9.21;      ///< Reprojection inlier bound of the RANSAC (chi^2, 2 dof), > 0.
+  double guided_radius_px = 8.0;  ///< Search radius of the guided matching [px], > 0.
+  int min_inliers = 60;           ///< Inliers after guided matching to accept a loop, >= 3.
+  double max_roll_pitch_deg = 2.0;  ///< Inertial maps: largest roll / pitch correction [deg], > 0.
+  PoseGraphOptions pose_graph;      ///< four_dof is set from the map (inertial or not).
+  int strong_covisibility = 100;    ///< Covisibility edges of the essential graph, >= 1.
+  bool fuse = true;                 ///< Fuse the loop's duplicated points after the correction.
+  /// Throws OptionError naming the first invalid field (prefix "loop.").
+  void validate() const;
+  bool operator==(const LoopClosingOptions&) const = default;
+};
+
+/// An accepted loop.
+struct LoopClosure {
+  map::KeyFrameId query = map::kNoKeyFrame;  ///< The new keyframe that recognised the place.
+  map::KeyFrameId match = map::kNoKeyFrame;  ///< The older keyframe it was matched to.
+  TimeNs query_t_ns = 0;
+  TimeNs match_t_ns = 0;
+  /// The verified relative body pose T_match_query (in the match's frame, after the correction).
+  SE3d T_match_query;
+  int inliers = 0;
+  /// The correction of the query keyframe before the pose graph (T_new = C T_old).
+  SE3d correction;
+};
+
+/// Why the verification of a candidate stopped.
+enum class Rejection {
+  kTooFewMatches,  ///< Descriptor matches (or loop points) below the RANSAC's min_inliers.
+  kNoTransform,    ///< RANSAC or the first motion-only BA found no pose.
+  kTooFewInliers,  ///< Fewer than min_inliers after guided matching.
+  kTilted,         ///< Inertial map: the correction would change roll / pitch.
+};
+inline constexpr int kRejectionKinds = 4;
+
+/// What one processKeyFrame() call did, with its stage times [ms].
+struct LoopStep {
+  int candidates = 0;                  ///< Consistent groups verified.
+  int rejected[kRejectionKinds] = {};  ///< Candidates rejected, by Rejection.
+  std::optional<LoopClosure> closure;
+  double detection_ms = 0.0;
+  double verification_ms = 0.0;
+  double correction_ms = 0.0;  ///< Pose graph, point correction and fusion.
+};
+
+class LoopCloser {
+ public:
+  /// camera0: the left camera (projection for guided matching); camera: the same as a
+  /// reprojection camera in the body frame (its baseline enables stereo observations). Validates
+  /// the options.
+  LoopCloser(const LoopClosingOptions& options, const CameraModel& camera0,
+             const optim::ReprojectionCamera& camera, const mapping::PointFusionOptions& fusion,
+             const optim::PoseOptimizerOptions& pose);
+
+  /// Detects, verifies and corrects a loop at `keyframe` (a keyframe of `map` local mapping has
+  /// processed). inertial: the map is gravity-aligned (4-DoF correction).
+  LoopStep processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bool inertial);
+
+  /// Forgets the database and the loops (the map was dropped).
+  void reset();
+
+  const KeyFrameDatabase& database() const { return database_; }
+  const LoopClosingOptions& options() const { return options_; }
+
+ private:
+  struct Candidate;
+  struct Verified;
+  struct Group {
+    std::vector<map::KeyFrameId> members;  ///< Sorted.
+    int consistency = 0;
+  };
+  std::vector<Candidate> detect(const map::Map& map, const map::KeyFrame& query);
+  std::vector<Candidate> consistentCandidates(const map::Map& map,
+                                              const std::vector<Candidate>& groups);
+  /// The verified loop, or nullopt with `rejection` set.
+  std::optional<Verified> verify(const map::Map& map, const map::KeyFrame& query,
+                                 map::KeyFrameId candidate, bool inertial,
+                                 Rejection& rejection) const;
+  void correct(map::Map& map, const map::KeyFrame& query, const Verified& loop, bool inertial);
+  void fuseLoop(map::Map& map, const map::KeyFrame& query, const Verified& loop) const;
+
+  LoopClosingOptions options_;
+  CameraModel camera0_;
+  optim::ReprojectionCamera camera_;
+  mapping::PointFuser fuser_;
+  optim::PoseOptimizer pose_optimizer_;
+  KeyFrameDatabase database_;
+  std::vector<Group> groups_;  ///< Consistent groups of the previous keyframe.
+  std::vector<PoseGraphEdge> loop_edges_;
+  int keyframes_since_loop_ = 0;
+  bool had_loop_ = false;
+};
+
+}  // namespace superdyna::loop

@@ -1,0 +1,565 @@
+#include "superdyna/loop/loop_closer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "superdyna/core/error.h"
+#include "superdyna/features/feature_set.h"
+#include "superdyna/features/matcher.h"
+
+namespace superdyna::loop {
+
+void LoopClosingOptions::validate() const {
+  database.validate();
+  ransac.validate();
+  pose_graph.validate();
+  if (!(min_time_gap_s >= 0.0)) throw OptionError("loop.min_time_gap_s", "must be >= 0");
+  if (!(min_score >= 0.0 && min_score <= 1.0))
+    throw OptionError("loop.min_score", "must be in [0, 1]");
+  if (group_keyframes < 0) throw OptionError("loop.group_keyframes", "must be >= 0");
+  if (consistency < 1) throw OptionError("loop.consistency", "must be >= 1");
+  if (max_candidates < 1) throw OptionError("loop.max_candidates", "must be >= 1");
+  if (keyframes_between_loops < 0) {
+    throw OptionError("loop.keyframes_between_loops", "must be >= 0");
+  }
+  if (match_max_hamming < 0) throw OptionError("loop.match_max_hamming", "must be >= 0");
+  if (!(match_max_l2 >= 0.0)) throw OptionError("loop.match_max_l2", "must be >= 0");
+  if (!(match_ratio > 0.0 && match_ratio <= 1.0)) {
+    throw OptionError("loop.match_ratio", "must be in (0, 1]");
+  }
+  if (!(ransac_chi2 > 0.0)) throw OptionError("loop.ransac_chi2", "must be > 0");
+  if (!(guided_radius_px > 0.0)) throw OptionError("loop.guided_radius_px", "must be > 0");
+  if (min_inliers < 3) throw OptionError("loop.min_inliers", "must be >= 3");
+  if (!(max_roll_pitch_deg > 0.0)) throw OptionError("loop.max_roll_pitch_deg", "must be > 0");
+  if (strong_covisibility < 1) throw OptionError("loop.strong_covisibility", "must be >= 1");
+}
+
+struct LoopCloser::Candidate {
+  map::KeyFrameId id = map::kNoKeyFrame;  ///< The best-scoring keyframe of the group.
+  std::vector<map::KeyFrameId> group;     ///< Sorted.
+  double group_score = 0.0;
+};
+
+struct LoopCloser::Verified {
+  map::KeyFrameId match = map::kNoKeyFrame;
+  SE3d T_w_b_query;  ///< The query keyframe's pose in the loop's frame.
+  std::vector<map::KeyFrameId> loop_group;
+  /// Inlier matches: query keypoint index -> loop map point.
+  std::vector<std::pair<int, map::MapPointId>> matches;
+  int inliers = 0;
+};
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// The map points of the loop group that verification matches against.
+struct LoopPoints {
+  std::vector<map::MapPointId> ids;
+  std::vector<Eigen::Vector3d> p_w;
+  features::FeatureSet features;  ///< Descriptors (keypoints: octave and angle of no use here).
+};
+
+/// The query keyframe's background keypoints with a 3D position in its camera.
+struct QueryPoints {
+  std::vector<int> index;  ///< Keypoint index in the keyframe.
+  std::vector<Eigen::Vector3d> p_c;
+  features::FeatureSet features;
+};
+
+features::DescriptorType descriptorType(const cv::Mat& descriptors) {
+  return descriptors.type() == CV_32FC1 ? features::DescriptorType::kFloat
+                                        : features::DescriptorType::kBinary;
+}
+
+features::Keypoint featureKeypoint(const map::KeyFrameKeypoint& k) {
+  features::Keypoint out;
+  out.pixel = k.pixel;
+  out.octave = k.octave;
+  out.angle = k.angle;
+  out.class_id = k.class_id;
+  out.instance_id = k.instance_id;
+  return out;
+}
+
+std::vector<map::KeyFrameId> sortedGroup(map::KeyFrameId id, std::vector<map::KeyFrameId> others) {
+  others.push_back(id);
+  std::sort(others.begin(), others.end());
+  others.erase(std::unique(others.begin(), others.end()), others.end());
+  return others;
+}
+
+bool intersects(const std::vector<map::KeyFrameId>& a, const std::vector<map::KeyFrameId>& b) {
+  auto i = a.begin();
+  auto j = b.begin();
+  while (i != a.end() && j != b.end()) {
+    if (*i == *j) return true;
+    if (*i < *j) {
+      ++i;
+    } else {
+      ++j;
+    }
+  }
+  return false;
+}
+
+LoopPoints loopPoints(const map::Map& map, const std::vector<map::KeyFrameId>& group,
+                      const map::KeyFrame& query) {
+  std::set<map::MapPointId> ids;
+  for (const map::KeyFrameId id : group) {
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      for (const map::MapPointId p : kf.map_points)
+        if (p != map::kNoMapPoint) ids.insert(p);
+    });
+  }
+  LoopPoints points;
+  points.features.descriptor_type = descriptorType(query.descriptors);
+  std::vector<cv::Mat> rows;
+  for (const map::MapPointId id : ids) {
+    map.readMapPoint(id, [&](const map::MapPoint& p) {
+      if (p.bad || p.descriptor.empty() || p.class_id != features::kClassBackground ||
+          p.descriptor.type() != query.descriptors.type() ||
+          p.descriptor.cols != query.descriptors.cols || p.observations.contains(query.id)) {
+        return;
+      }
+      points.ids.push_back(id);
+      points.p_w.push_back(p.p_w);
+      rows.push_back(p.descriptor);
+      points.features.keypoints.emplace_back();
+    });
+  }
+  if (!rows.empty()) cv::vconcat(rows, points.features.descriptors);
+  return points;
+}
+
+QueryPoints queryPoints(const map::Map& map, const map::KeyFrame& query, const SE3d& T_c_w) {
+  QueryPoints points;
+  points.features.descriptor_type = descriptorType(query.descriptors);
+  std::vector<int> rows;
+  for (std::size_t i = 0; i < query.keypoints.size(); ++i) {
+    const map::KeyFrameKeypoint& k = query.keypoints[i];
+    if (k.class_id != features::kClassBackground || !k.valid() || k.camera != 0) continue;
+    std::optional<Eigen::Vector3d> p_c;
+    if (k.hasStereo()) {
+      p_c = k.depth_m * Eigen::Vector3d(k.normalized.x(), k.normalized.y(), 1.0);
+    } else if (query.map_points[i] != map::kNoMapPoint) {
+      if (const auto p_w = map.mapPointPosition(query.map_points[i])) p_c = T_c_w * *p_w;
+    }
+    if (!p_c || !(p_c->z() > 0.0)) continue;
+    points.index.push_back(static_cast<int>(i));
+    points.p_c.push_back(*p_c);
+    points.features.keypoints.push_back(featureKeypoint(k));
+    rows.push_back(static_cast<int>(i));
+  }
+  points.features.descriptors =
+      cv::Mat(static_cast<int>(rows.size()), query.descriptors.cols, query.descriptors.type());
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    query.descriptors.row(rows[r]).copyTo(points.features.descriptors.row(static_cast<int>(r)));
+  return points;
+}
+
+optim::PoseObservation observationOf(const map::KeyFrameKeypoint& k, const Eigen::Vector3d& p_w) {
+  optim::PoseObservation o;
+  o.p_w = p_w;
+  o.normalized = k.normalized;  // left camera only: the rig need not be rectified
+  o.octave = k.octave;
+  return o;
+}
+
+/// Angle [deg] by which a rotation tilts the world z axis (its roll and pitch).
+double tiltDegrees(const Eigen::Matrix3d& R) {
+  const double c = std::clamp((R * Eigen::Vector3d::UnitZ()).z(), -1.0, 1.0);
+  return std::acos(c) * 180.0 / M_PI;
+}
+
+}  // namespace
+
+LoopCloser::LoopCloser(const LoopClosingOptions& options, const CameraModel& camera0,
+                       const optim::ReprojectionCamera& camera,
+                       const mapping::PointFusionOptions& fusion,
+                       const optim::PoseOptimizerOptions& pose)
+    : options_(options),
+      camera0_(camera0),
+      camera_(camera),
+      fuser_(fusion, camera),
+      pose_optimizer_(pose),
+      database_(options.database) {
+  options_.validate();
+  camera_.validate();
+}
+
+void LoopCloser::reset() {
+  database_.clear();
+  groups_.clear();
+  loop_edges_.clear();
+  keyframes_since_loop_ = 0;
+  had_loop_ = false;
+}
+
+LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bool inertial) {
+  LoopStep step;
+  if (!options_.enabled) return step;
+  const std::optional<map::KeyFrame> query = map.keyFrame(keyframe);
+  if (!query || query->descriptors.empty()) return step;
+  auto start = Clock::now();
+  ++keyframes_since_loop_;
+  const bool resting = had_loop_ && keyframes_since_loop_ <= options_.keyframes_between_loops;
+  std::vector<Candidate> candidates = detect(map, *query);
+  if (resting) candidates.clear();
+  const std::vector<Candidate> consistent = consistentCandidates(map, candidates);
+  step.detection_ms = millisecondsSince(start);
+  start = Clock::now();
+  std::optional<Verified> verified;
+  for (const Candidate& candidate : consistent) {
+    if (step.candidates >= options_.max_candidates) break;
+    ++step.candidates;
+    Rejection rejection = Rejection::kTooFewMatches;
+    verified = verify(map, *query, candidate.id, inertial, rejection);
+    if (verified) break;
+    ++step.rejected[static_cast<int>(rejection)];
+  }
+  step.verification_ms = millisecondsSince(start);
+  if (!verified) return step;
+  start = Clock::now();
+  LoopClosure closure;
+  closure.query = keyframe;
+  closure.match = verified->match;
+  closure.query_t_ns = query->t_ns;
+  map.readKeyFrame(verified->match, [&](const map::KeyFrame& kf) { closure.match_t_ns = kf.t_ns; });
+  closure.inliers = verified->inliers;
+  closure.correction = verified->T_w_b_query * query->T_w_b.inverse();
+  correct(map, *query, *verified, inertial);
+  if (options_.fuse) fuseLoop(map, *query, *verified);
+  const std::optional<SE3d> T_w_match = map.keyFramePose(verified->match);
+  const std::optional<SE3d> T_w_query = map.keyFramePose(keyframe);
+  if (T_w_match && T_w_query) closure.T_match_query = T_w_match->inverse() * *T_w_query;
+  step.correction_ms = millisecondsSince(start);
+  step.closure = closure;
+  groups_.clear();
+  keyframes_since_loop_ = 0;
+  had_loop_ = true;
+  return step;
+}
+
+std::vector<LoopCloser::Candidate> LoopCloser::detect(const map::Map& map,
+                                                      const map::KeyFrame& query) {
+  const cv::Mat rows = placeDescriptorRows(query, options_.database.max_descriptors);
+  std::vector<PlaceScore> scores = database_.query(rows);
+  database_.add(query.id, rows);
+  std::map<map::KeyFrameId, double> score_of;
+  for (const PlaceScore& s : scores)
+    score_of[s.id] = s.score;
+  std::set<map::KeyFrameId> excluded{query.id};
+  for (const map::CovisibleKeyFrame& c : map.covisibleKeyFrames(query.id))
+    excluded.insert(c.id);
+  // The bar: the least similar of the best covisible keyframes (ORB-SLAM's minScore).
+  double bar = options_.min_score;
+  const std::vector<map::KeyFrameId> best =
+      map.bestCovisibleKeyFrames(query.id, options_.group_keyframes);
+  if (!best.empty()) {
+    double least = 1.0;
+    for (const map::KeyFrameId id : best) {
+      const auto it = score_of.find(id);
+      least = std::min(least, it == score_of.end() ? 0.0 : it->second);
+    }
+    bar = std::max(bar, least);
+  }
+  const TimeNs latest = query.t_ns - secondsToNs(options_.min_time_gap_s);
+  std::map<map::KeyFrameId, double> passed;
+  for (const PlaceScore& s : scores) {
+    if (s.score < bar || excluded.contains(s.id)) continue;
+    TimeNs t_ns = 0;
+    if (!map.readKeyFrame(s.id, [&](const map::KeyFrame& kf) { t_ns = kf.t_ns; })) continue;
+    if (t_ns > latest) continue;
+    passed[s.id] = s.score;
+  }
+  std::vector<Candidate> groups;
+  double best_score = 0.0;
+  for (const auto& [id, score] : passed) {
+    Candidate group;
+    group.id = id;
+    group.group_score = score;
+    double best_member = score;
+    const std::vector<map::KeyFrameId> neighbours =
+        map.bestCovisibleKeyFrames(id, options_.group_keyframes);
+    for (const map::KeyFrameId other : neighbours) {
+      const auto it = passed.find(other);
+      if (it == passed.end()) continue;
+      group.group_score += it->second;
+      if (it->second > best_member) {
+        best_member = it->second;
+        group.id = other;
+      }
+    }
+    group.group = sortedGroup(id, neighbours);
+    best_score = std::max(best_score, group.group_score);
+    groups.push_back(std::move(group));
+  }
+  std::vector<Candidate> kept;
+  for (Candidate& group : groups)
+    if (group.group_score >= 0.75 * best_score) kept.push_back(std::move(group));
+  std::stable_sort(kept.begin(), kept.end(), [](const Candidate& a, const Candidate& b) {
+    return a.group_score > b.group_score;
+  });
+  return kept;
+}
+
+std::vector<LoopCloser::Candidate> LoopCloser::consistentCandidates(
+    const map::Map& map, const std::vector<Candidate>& groups) {
+  (void)map;
+  std::vector<Group> current;
+  std::vector<Candidate> consistent;
+  std::set<map::KeyFrameId> chosen;
+  for (const Candidate& candidate : groups) {
+    int consistency = 1;
+    for (const Group& previous : groups_)
+      if (intersects(previous.members, candidate.group))
+        consistency = std::max(consistency, previous.consistency + 1);
+    current.push_back({candidate.group, consistency});
+    if (consistency >= options_.consistency && chosen.insert(candidate.id).second) {
+      consistent.push_back(candidate);
+    }
+  }
+  groups_ = std::move(current);
+  return consistent;
+}
+
+std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
+                                                       const map::KeyFrame& query,
+                                                       map::KeyFrameId candidate, bool inertial,
+                                                       Rejection& rejection) const {
+  const map::Map::ReadLock reading = map.readLock();  // one state of the loop's points
+  Verified out;
+  out.match = candidate;
+  out.loop_group =
+      sortedGroup(candidate, map.bestCovisibleKeyFrames(candidate, options_.group_keyframes));
+  const LoopPoints loop = loopPoints(map, out.loop_group, query);
+  const SE3d T_w_c = query.T_w_b * camera_.T_b_c;
+  const QueryPoints mine = queryPoints(map, query, T_w_c.inverse());
+  if (static_cast<int>(loop.ids.size()) < options_.ransac.min_inliers ||
+      static_cast<int>(mine.index.size()) < options_.ransac.min_inliers) {
+    return std::nullopt;
+  }
+  features::BruteForceMatchOptions matching;
+  matching.max_distance = options_.match_max_hamming;
+  matching.max_l2_distance = options_.match_max_l2;
+  matching.ratio = options_.match_ratio;
+  const std::vector<features::Match> matches =
+      features::matchBruteForce(mine.features, loop.features, matching);
+  if (static_cast<int>(matches.size()) < options_.ransac.min_inliers) return std::nullopt;
+
+  // RANSAC: the query camera in the loop's frame, p_loop_w = T * p_c.
+  std::vector<Eigen::Vector3d> a, b;
+  for (const features::Match& m : matches) {
+    a.push_back(loop.p_w[static_cast<std::size_t>(m.train)]);
+    b.push_back(mine.p_c[static_cast<std::size_t>(m.query)]);
+  }
+  const double focal = 0.5 * (camera_.fx + camera_.fy);
+  const map::MapOptions& pyramid = map.options();
+  const auto is_inlier = [&](const SE3d& T_w_c_hyp, std::size_t i) {
+    const Eigen::Vector3d p_c = T_w_c_hyp.inverse() * a[i];
+    if (!(p_c.z() > 0.0)) return false;
+    const map::KeyFrameKeypoint& k = query.keypoints[static_cast<std::size_t>(
+        mine.index[static_cast<std::size_t>(matches[i].query)])];
+    const double sigma = optim::octaveSigmaPx(k.octave, 1.0, pyramid.scale_factor);
+    const Eigen::Vector2d error = focal * (p_c.head<2>() / p_c.z() - k.normalized);
+    return error.squaredNorm() < options_.ransac_chi2 * sigma * sigma;
+  };
+  rejection = Rejection::kNoTransform;
+  const std::optional<RigidRansacResult> ransac = ransacRigid(a, b, is_inlier, options_.ransac);
+  if (!ransac) return std::nullopt;
+  std::vector<optim::PoseObservation> observations;
+  for (std::size_t i = 0; i < matches.size(); ++i) {
+    if (!ransac->inliers[i]) continue;
+    const int index = mine.index[static_cast<std::size_t>(matches[i].query)];
+    observations.push_back(observationOf(query.keypoints[static_cast<std::size_t>(index)], a[i]));
+  }
+  const std::vector<optim::ReprojectionCamera> cameras{camera_};
+  const optim::PoseOptimizationResult first =
+      pose_optimizer_.optimize(ransac->T_a_b * camera_.T_b_c.inverse(), cameras, observations);
+  if (!first.success) return std::nullopt;
+
+  rejection = Rejection::kTooFewInliers;
+  // Guided matching: every loop point projected from the verified pose into the query keyframe.
+  features::FeatureSet train;
+  train.descriptor_type = descriptorType(query.descriptors);
+  train.descriptors = query.descriptors;
+  train.image_size = cv::Size(camera0_.width(), camera0_.height());
+  for (const map::KeyFrameKeypoint& k : query.keypoints)
+    train.keypoints.push_back(featureKeypoint(k));
+  const SE3d T_c_w = (first.T_w_b * camera_.T_b_c).inverse();
+  features::FeatureSet projected;
+  projected.descriptor_type = train.descriptor_type;
+  std::vector<Eigen::Vector2d> predicted;
+  std::vector<int> projected_point;
+  std::vector<cv::Mat> rows;
+  for (std::size_t k = 0; k < loop.ids.size(); ++k) {
+    const Eigen::Vector3d p_c = T_c_w * loop.p_w[k];
+    if (!(p_c.z() > 0.05)) continue;
+    const std::optional<Eigen::Vector2d> pixel = camera0_.project(p_c);
+    if (!pixel || !camera0_.isInImage(*pixel)) continue;
+    predicted.push_back(*pixel);
+    projected_point.push_back(static_cast<int>(k));
+    rows.push_back(loop.features.descriptors.row(static_cast<int>(k)));
+    projected.keypoints.emplace_back();
+  }
+  if (static_cast<int>(rows.size()) < options_.min_inliers) return std::nullopt;
+  cv::vconcat(rows, projected.descriptors);
+  features::ProjectionMatchOptions guided;
+  guided.radius_px = options_.guided_radius_px;
+  guided.max_distance = options_.match_max_hamming;
+  guided.max_l2_distance = options_.match_max_l2;
+  guided.ratio = 1.0;
+  guided.check_orientation = false;
+  const features::KeypointGrid grid(train.keypoints, train.image_size);
+  const std::vector<features::Match> found =
+      features::matchByProjection(projected, predicted, train, grid, guided);
+  std::vector<std::pair<int, map::MapPointId>> pairs;
+  observations.clear();
+  for (const features::Match& m : found) {
+    const map::KeyFrameKeypoint& k = query.keypoints[static_cast<std::size_t>(m.train)];
+    if (k.class_id != features::kClassBackground || !k.valid() || k.camera != 0) continue;
+    const std::size_t point =
+        static_cast<std::size_t>(projected_point[static_cast<std::size_t>(m.query)]);
+    pairs.emplace_back(m.train, loop.ids[point]);
+    observations.push_back(observationOf(k, loop.p_w[point]));
+  }
+  if (static_cast<int>(observations.size()) < options_.min_inliers) return std::nullopt;
+  const optim::PoseOptimizationResult final_pose =
+      pose_optimizer_.optimize(first.T_w_b, cameras, observations);
+  if (final_pose.num_inliers < options_.min_inliers) return std::nullopt;
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    if (final_pose.inliers[i]) out.matches.push_back(pairs[i]);
+  out.inliers = final_pose.num_inliers;
+  out.T_w_b_query = final_pose.T_w_b;
+  if (inertial) {
+    // Gravity observes roll and pitch: a loop that changes them is wrong; keep yaw and position.
+    const Eigen::Matrix3d R_correction =
+        out.T_w_b_query.rotation() * query.T_w_b.rotation().transpose();
+    rejection = Rejection::kTilted;
+    if (tiltDegrees(R_correction) > options_.max_roll_pitch_deg) return std::nullopt;
+    out.T_w_b_query =
+        SE3d(yawRotation(yawOf(R_correction)) * query.T_w_b.rotation(), out.T_w_b_query.t);
+  }
+  return out;
+}
+
+void LoopCloser::correct(map::Map& map, const map::KeyFrame& query, const Verified& loop,
+                         bool inertial) {
+  struct Snapshot {
+    SE3d T_w_b;
+    map::KeyFrameId previous = map::kNoKeyFrame;
+    TimeNs t_ns = 0;
+  };
+  std::map<map::KeyFrameId, Snapshot> nodes;
+  std::vector<PoseGraphEdge> edges;
+  {
+    const map::Map::ReadLock reading = map.readLock();
+    for (const map::KeyFrameId id : map.keyFrameIds()) {
+      map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+        nodes[id] = {kf.T_w_b, kf.previous, kf.t_ns};
+      });
+    }
+    for (const auto& [id, node] : nodes) {
+      const auto previous = nodes.find(node.previous);
+      if (previous != nodes.end())
+        edges.push_back(edgeBetween(node.previous, previous->second.T_w_b, id, node.T_w_b));
+      for (const map::CovisibleKeyFrame& c :
+           map.covisibleKeyFrames(id, options_.strong_covisibility)) {
+        const auto other = nodes.find(c.id);
+        if (c.id > id && c.id != node.previous && other != nodes.end() &&
+            other->second.previous != id) {
+          edges.push_back(edgeBetween(id, node.T_w_b, c.id, other->second.T_w_b));
+        }
+      }
+    }
+  }
+  if (!nodes.contains(query.id) || !nodes.contains(loop.match)) return;
+  for (const PoseGraphEdge& edge : loop_edges_)
+    if (nodes.contains(edge.from) && nodes.contains(edge.to)) edges.push_back(edge);
+  const SE3d C_query = loop.T_w_b_query * nodes.at(query.id).T_w_b.inverse();
+  std::map<map::KeyFrameId, SE3d> initial;
+  for (const auto& [id, node] : nodes)
+    initial[id] = node.T_w_b;
+  const std::vector<map::KeyFrameId> current =
+      sortedGroup(query.id, map.bestCovisibleKeyFrames(query.id, options_.group_keyframes));
+  for (const map::KeyFrameId id : current)
+    if (nodes.contains(id)) initial[id] = C_query * nodes.at(id).T_w_b;
+  for (const map::KeyFrameId k : current) {
+    if (!nodes.contains(k)) continue;
+    for (const map::KeyFrameId l : loop.loop_group) {
+      if (!nodes.contains(l) || std::binary_search(current.begin(), current.end(), l)) continue;
+      if (k != query.id && l != loop.match)
+        continue;  // the query to the loop group, its group to the match
+      const PoseGraphEdge edge = edgeBetween(l, nodes.at(l).T_w_b, k, initial.at(k));
+      edges.push_back(edge);
+      loop_edges_.push_back(edge);
+    }
+  }
+  PoseGraphOptions graph = options_.pose_graph;
+  graph.four_dof = inertial;
+  const PoseGraphResult result = optimizePoseGraph(initial, edges, {loop.match}, graph);
+
+  const map::Map::UpdateLock update = map.updateLock();  // the correction is one map update
+  std::map<map::KeyFrameId, SE3d> correction;
+  for (const auto& [id, node] : nodes)
+    correction[id] = result.T_w_b.at(id) * node.T_w_b.inverse();
+  const SE3d newest = correction.rbegin()->second;  // keyframes inserted meanwhile follow it
+  map::MapCorrection record;
+  for (const map::KeyFrameId id : map.keyFrameIds()) {
+    const auto it = correction.find(id);
+    const SE3d C = it == correction.end() ? newest : it->second;
+    map.readKeyFrame(id,
+                     [&](const map::KeyFrame& kf) { record.keyframes.emplace_back(kf.t_ns, C); });
+    const std::optional<map::KeyFrame> kf = map.keyFrame(id);
+    map.setKeyFramePose(id, C * kf->T_w_b);
+    if (inertial) map.setKeyFrameInertialState(id, C.rotation() * kf->v_w, kf->bg, kf->ba);
+    correction[id] = C;
+  }
+  for (const map::MapPointId id : map.mapPointIds()) {
+    std::optional<std::pair<map::KeyFrameId, Eigen::Vector3d>> reference;
+    map.readMapPoint(id, [&](const map::MapPoint& p) {
+      if (!p.observations.empty()) reference.emplace(p.observations.begin()->first, p.p_w);
+    });
+    if (!reference) continue;
+    const auto it = correction.find(reference->first);
+    if (it == correction.end()) continue;
+    map.setMapPointPosition(id, it->second * reference->second);
+    map.updateNormalAndDistances(id);
+  }
+  std::stable_sort(record.keyframes.begin(), record.keyframes.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  map.recordCorrection(std::move(record));
+}
+
+void LoopCloser::fuseLoop(map::Map& map, const map::KeyFrame& query, const Verified& loop) const {
+  {
+    const map::Map::UpdateLock update = map.updateLock();  // the loop's points, one map update
+    for (const auto& [index, point] : loop.matches) {
+      std::optional<map::KeyFrame> now = map.keyFrame(query.id);
+      if (!now) return;
+      const map::MapPointId own = now->map_points[static_cast<std::size_t>(index)];
+      if (own == point || !map.hasMapPoint(point)) continue;
+      bool observed_elsewhere = false;
+      map.readMapPoint(point, [&](const map::MapPoint& p) {
+        observed_elsewhere = p.bad || p.observations.contains(query.id);
+      });
+      if (observed_elsewhere) continue;
+      if (own != map::kNoMapPoint) {
+        map.replaceMapPoint(own, point);
+      } else {
+        map.addObservation(point, query.id, index);
+      }
+      map.updateNormalAndDistances(point);
+    }
+  }
+  std::vector<map::KeyFrameId> group =
+      sortedGroup(query.id, map.bestCovisibleKeyFrames(query.id, options_.group_keyframes));
+  for (const map::KeyFrameId id : group)
+    fuser_.fuse(map, id);
+}
+
+}  // namespace superdyna::loop
