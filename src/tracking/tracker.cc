@@ -266,7 +266,12 @@ TrackingResult Tracker::track(const Frame& input) {
     result.T_w_reference = result.T_w_b;
   }
   rememberFrame(input, kept, has_map_ ? tracked : std::vector<map::MapPointId>{});
-  if (has_map_) followMapCorrections(&result.T_w_b);
+  if (has_map_) {
+    // A loop corrected since the frame was tracked moves the frame and its reference keyframe
+    // alike: the pose relative to the keyframe stays what tracking measured.
+    const SE3d correction = followMapCorrections(&result.T_w_b);
+    result.T_w_reference = correction * result.T_w_reference;
+  }
   updateMotion(result.T_w_b, frame.t_ns);
   return result;
 }

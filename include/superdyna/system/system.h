@@ -158,8 +158,9 @@ class System {
   /// as ORB-SLAM reports its frames; frames of maps dropped at resets, and frames tracked on no
   /// map, keep their poses as tracked. Call after finish() for the final poses.
   Trajectory trajectory() const;
-  /// Every recorded frame's pose as the tracker reported it at that frame (causal: no later
-  /// correction, apart from changes of the world frame such as the inertial initialisation's).
+  /// Every recorded frame's pose as the tracker reported it at that frame (causal: with the loop
+  /// corrections known by then, no later ones, apart from changes of the world frame such as the
+  /// inertial initialisation's).
   Trajectory onlineTrajectory() const;
   /// Keyframes in time order: those of the current map with their latest (local-BA refined)
   /// poses, those of maps dropped at resets with their poses at insertion. Call after finish() for
