@@ -1,7 +1,9 @@
 #include "superdyna/loop/keyframe_database.h"
 
 #include <faiss/IndexBinaryFlat.h>
+#include <faiss/IndexBinaryHNSW.h>
 #include <faiss/IndexFlat.h>
+#include <faiss/IndexHNSW.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -20,6 +22,9 @@ void KeyFrameDatabaseOptions::validate() const {
   if (max_hamming < 0) throw OptionError("loop.database_max_hamming", "must be >= 0");
   if (!(min_similarity >= -1.0 && min_similarity <= 1.0)) {
     throw OptionError("loop.database_min_similarity", "must be in [-1, 1]");
+  }
+  if (hnsw_search != 0 && hnsw_search < neighbours) {
+    throw OptionError("loop.database_hnsw_search", "must be 0 (exact) or >= database_neighbours");
   }
 }
 
@@ -48,8 +53,8 @@ cv::Mat placeDescriptorRows(const map::KeyFrame& keyframe, int max_rows) {
 struct KeyFrameDatabase::Index {
   int type = -1;  ///< CV_8UC1 or CV_32FC1.
   int cols = 0;
-  std::unique_ptr<faiss::IndexBinaryFlat> binary;
-  std::unique_ptr<faiss::IndexFlatIP> dense;
+  std::unique_ptr<faiss::IndexBinary> binary;
+  std::unique_ptr<faiss::Index> dense;
 };
 
 namespace {
@@ -61,6 +66,26 @@ cv::Mat normalizedRows(const cv::Mat& rows) {
     if (norm > 0.0) out.row(r) /= norm;
   }
   return out;
+}
+
+constexpr int kHnswLinks = 16;         ///< HNSW's M: links per descriptor and layer.
+constexpr int kHnswConstruction = 40;  ///< HNSW's efConstruction.
+
+std::unique_ptr<faiss::IndexBinary> binaryIndex(int bits, int hnsw_search) {
+  if (hnsw_search == 0) return std::make_unique<faiss::IndexBinaryFlat>(bits);
+  auto index = std::make_unique<faiss::IndexBinaryHNSW>(bits, kHnswLinks);
+  index->hnsw.efConstruction = kHnswConstruction;
+  index->hnsw.efSearch = hnsw_search;
+  return index;
+}
+
+std::unique_ptr<faiss::Index> denseIndex(int dims, int hnsw_search) {
+  if (hnsw_search == 0) return std::make_unique<faiss::IndexFlatIP>(dims);
+  auto index =
+      std::make_unique<faiss::IndexHNSWFlat>(dims, kHnswLinks, faiss::METRIC_INNER_PRODUCT);
+  index->hnsw.efConstruction = kHnswConstruction;
+  index->hnsw.efSearch = hnsw_search;
+  return index;
 }
 
 /// faiss in the calling thread only: deterministic and no oversubscription of the pipeline's cores.
@@ -87,9 +112,9 @@ void KeyFrameDatabase::add(map::KeyFrameId id, const cv::Mat& rows) {
     index.type = rows.type();
     index.cols = rows.cols;
     if (rows.type() == CV_8UC1) {
-      index.binary = std::make_unique<faiss::IndexBinaryFlat>(8 * rows.cols);
+      index.binary = binaryIndex(8 * rows.cols, options_.hnsw_search);
     } else {
-      index.dense = std::make_unique<faiss::IndexFlatIP>(rows.cols);
+      index.dense = denseIndex(rows.cols, options_.hnsw_search);
     }
   }
   if (rows.type() != index.type || rows.cols != index.cols) {

@@ -9,6 +9,7 @@
 #include "superdyna/core/error.h"
 #include "superdyna/features/feature_set.h"
 #include "superdyna/features/matcher.h"
+#include "superdyna/mapping/keyframe_keypoints.h"
 
 namespace superdyna::loop {
 
@@ -73,16 +74,6 @@ struct QueryPoints {
 features::DescriptorType descriptorType(const cv::Mat& descriptors) {
   return descriptors.type() == CV_32FC1 ? features::DescriptorType::kFloat
                                         : features::DescriptorType::kBinary;
-}
-
-features::Keypoint featureKeypoint(const map::KeyFrameKeypoint& k) {
-  features::Keypoint out;
-  out.pixel = k.pixel;
-  out.octave = k.octave;
-  out.angle = k.angle;
-  out.class_id = k.class_id;
-  out.instance_id = k.instance_id;
-  return out;
 }
 
 std::vector<map::KeyFrameId> sortedGroup(map::KeyFrameId id, std::vector<map::KeyFrameId> others) {
@@ -151,7 +142,7 @@ QueryPoints queryPoints(const map::Map& map, const map::KeyFrame& query, const S
     if (!p_c || !(p_c->z() > 0.0)) continue;
     points.index.push_back(static_cast<int>(i));
     points.p_c.push_back(*p_c);
-    points.features.keypoints.push_back(featureKeypoint(k));
+    points.features.keypoints.push_back(mapping::asFeatureKeypoint(k));
     rows.push_back(static_cast<int>(i));
   }
   points.features.descriptors =
@@ -389,7 +380,7 @@ std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
   train.descriptors = query.descriptors;
   train.image_size = cv::Size(camera0_.width(), camera0_.height());
   for (const map::KeyFrameKeypoint& k : query.keypoints)
-    train.keypoints.push_back(featureKeypoint(k));
+    train.keypoints.push_back(mapping::asFeatureKeypoint(k));
   const SE3d T_c_w = (first.T_w_b * camera_.T_b_c).inverse();
   features::FeatureSet projected;
   projected.descriptor_type = train.descriptor_type;

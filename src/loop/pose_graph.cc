@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "superdyna/core/error.h"
+#include "superdyna/optim/solver_options.h"
 
 namespace superdyna::loop {
 
@@ -95,11 +96,8 @@ struct Node {
 };
 
 void solve(ceres::Problem& problem, const PoseGraphOptions& options, PoseGraphResult& result) {
-  ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver.max_num_iterations = options.iterations;
-  solver.num_threads = 1;
-  solver.logging_type = ceres::SILENT;
+  const ceres::Solver::Options solver =
+      optim::quietSolverOptions(ceres::SPARSE_NORMAL_CHOLESKY, options.iterations);
   ceres::Solver::Summary summary;
   ceres::Solve(solver, &problem, &summary);
   result.initial_cost = summary.initial_cost;

@@ -10,6 +10,7 @@
 
 #include "superdyna/optim/imu_factors.h"
 #include "superdyna/optim/se3_manifold.h"
+#include "superdyna/optim/solver_options.h"
 
 namespace superdyna::mapping {
 
@@ -312,11 +313,8 @@ class Problem {
 
   /// False (with a warning) when Ceres gives no usable solution; the state is then not written.
   bool solve() {
-    ceres::Solver::Options solver;
-    solver.linear_solver_type = ceres::DENSE_SCHUR;
-    solver.max_num_iterations = settings_.iterations;
-    solver.num_threads = 1;
-    solver.logging_type = ceres::SILENT;
+    const ceres::Solver::Options solver =
+        optim::quietSolverOptions(ceres::DENSE_SCHUR, settings_.iterations);
     ceres::Solver::Summary summary;
     ceres::Solve(solver, problem_.get(), &summary);
     if (summary.IsSolutionUsable()) return true;

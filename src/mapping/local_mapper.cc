@@ -38,6 +38,7 @@ void LocalMapperOptions::validate() const {
     throw OptionError("mapping.inertial_fixed_covisible", "must be >= 0");
   }
   if (inertial_iterations < 1) throw OptionError("mapping.inertial_iterations", "must be >= 1");
+  if (global_ba_iterations < 0) throw OptionError("mapping.global_ba_iterations", "must be >= 0");
 }
 
 namespace {
@@ -191,6 +192,24 @@ BundleAdjustmentResult LocalMapper::fullInertialBundleAdjust(map::Map& map, doub
                       BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
 }
 
+BundleAdjustmentResult LocalMapper::globalBundleAdjust(map::Map& map) {
+  if (options_.global_ba_iterations == 0) return {};
+  const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
+  if (ids.size() < 2) return {};
+  if (initializations_ > 0) {
+    const BundleAdjustmentWindow window =
+        fullInertialWindow(ids, bias_prior_sigma_gyro_, bias_prior_sigma_acc_);
+    return bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations),
+                        BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
+  }
+  BundleAdjustmentWindow window;
+  window.fixed = {ids.front()};
+  window.optimised.assign(ids.begin() + 1, ids.end());
+  // A monocular map's scale gauge: the second keyframe is held too.
+  if (cameras_.size() == 1) window.min_fixed = 2;
+  return bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations));
+}
+
 double LocalMapper::mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const {
   const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
   TimeNs t_first = 0;
@@ -238,8 +257,10 @@ LocalMappingResult LocalMapper::initializeInertialIfDue(map::Map& map, map::KeyF
   ++initializations_;
   result.inertial_initialization = true;
   result.world_change = applied.T_new_old;
+  bias_prior_sigma_gyro_ = init.gyro_bias_prior_sigma;
+  bias_prior_sigma_acc_ = applied.accel_bias_prior_sigma;
   const BundleAdjustmentResult ba =
-      fullInertialBundleAdjust(map, init.gyro_bias_prior_sigma, applied.accel_bias_prior_sigma);
+      fullInertialBundleAdjust(map, bias_prior_sigma_gyro_, bias_prior_sigma_acc_);
   result.observations += ba.observations;
   result.imu_edges += ba.imu_edges;
   return result;

@@ -13,6 +13,7 @@
 #include "superdyna/core/error.h"
 #include "superdyna/optim/imu_factors.h"
 #include "superdyna/optim/se3_manifold.h"
+#include "superdyna/optim/solver_options.h"
 
 namespace superdyna::optim {
 
@@ -33,16 +34,6 @@ Eigen::Matrix<double, 6, 6> priorCovariance(const PosePrior& prior) {
     throw OptionError("pose_prior.information", "must be symmetric positive definite");
   }
   return llt.solve(Eigen::Matrix<double, 6, 6>::Identity());
-}
-
-ceres::Solver::Options solverOptions(int max_iterations) {
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  options.minimizer_progress_to_stdout = false;
-  return options;
 }
 
 }  // namespace
@@ -145,7 +136,8 @@ SE3d PoseOptimizer::optimizeOnce(const SE3d& T_w_b, const std::vector<Reprojecti
   }
   if (problem.NumResidualBlocks() == 0) return T_w_b;
   ceres::Solver::Summary summary;
-  ceres::Solve(solverOptions(options_.iterations_per_round), &problem, &summary);
+  ceres::Solve(quietSolverOptions(ceres::DENSE_QR, options_.iterations_per_round), &problem,
+               &summary);
   if (!summary.IsSolutionUsable()) {
     spdlog::warn("pose optimisation over {} residuals failed, pose left unchanged: {}",
                  problem.NumResidualBlocks(), summary.message);

@@ -2,7 +2,7 @@
 
 namespace superdyna::system {
 
-void LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) {
+bool LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) {
   const loop::LoopStep step = closer_.processKeyFrame(map, id, inertial);
   const std::lock_guard lock(mutex_);
   ++summary_.keyframes;
@@ -15,6 +15,7 @@ void LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial)
   if (step.closure) summary_.loops.push_back(*step.closure);
   summary_.index_descriptors = closer_.database().numDescriptors();
   summary_.index_bytes = closer_.database().descriptorBytes();
+  return step.closure.has_value();
 }
 
 void LoopStage::mapReset() {

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "superdyna/core/error.h"
+#include "superdyna/mapping/keyframe_keypoints.h"
 #include "superdyna/mapping/map_inertial_alignment.h"
 
 namespace superdyna::tracking {
@@ -17,16 +18,6 @@ using Clock = std::chrono::steady_clock;
 
 /// The feature-side view of a keyframe's keypoint (position, orientation, octave, class) for
 /// matching against a frame's keypoints.
-features::Keypoint asFeatureKeypoint(const map::KeyFrameKeypoint& k) {
-  features::Keypoint keypoint;
-  keypoint.pixel = k.pixel;
-  keypoint.angle = k.angle;
-  keypoint.octave = k.octave;
-  keypoint.class_id = k.class_id;
-  keypoint.instance_id = k.instance_id;
-  return keypoint;
-}
-
 features::ProjectionMatchOptions withRadius(features::ProjectionMatchOptions options,
                                             double radius_px) {
   options.radius_px = radius_px;
@@ -377,7 +368,7 @@ ReferenceView Tracker::referenceView() const {
     if (kf.descriptors.type() == CV_32FC1) type = features::DescriptorType::kFloat;
     for (std::size_t i = 0; i < kf.map_points.size(); ++i) {
       if (kf.map_points[i] == map::kNoMapPoint) continue;
-      observed.emplace_back(kf.map_points[i], asFeatureKeypoint(kf.keypoints[i]));
+      observed.emplace_back(kf.map_points[i], mapping::asFeatureKeypoint(kf.keypoints[i]));
       rows.push_back(kf.descriptors.row(static_cast<int>(i)).clone());
     }
   });
@@ -472,7 +463,7 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
   const bool inertial = inertialInitialized();
   const auto job = [this, map = map_.get(), id, observer, inertial] {
     mapper_.processKeyFrame(*map, id);
-    if (observer) observer->keyFrameMapped(*map, id, inertial);
+    if (observer && observer->keyFrameMapped(*map, id, inertial)) mapper_.globalBundleAdjust(*map);
   };
   if (mapping_sink_) {
     mapping_sink_->submit(job);
@@ -703,7 +694,8 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
   features::Keypoint keypoint;
   if (!observation) return keypoint;
   map_->readKeyFrame(observation->first, [&](const map::KeyFrame& kf) {
-    keypoint = asFeatureKeypoint(kf.keypoints[static_cast<std::size_t>(observation->second)]);
+    keypoint =
+        mapping::asFeatureKeypoint(kf.keypoints[static_cast<std::size_t>(observation->second)]);
   });
   return keypoint;
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <set>
 #include <vector>
@@ -116,9 +117,44 @@ TEST(LocalMapper, WithoutObserversTheOldestWindowKeyFrameHoldsTheGauge) {
   EXPECT_LT(largestPositionError(scene, moved), 2e-3);
 }
 
+TEST(LocalMapper, GlobalBaAfterALoopMovesEveryKeyFrameBackAndHoldsTheGauge) {
+  // After a loop correction the global BA optimises the whole map: every keyframe but the gauge
+  // (a monocular map's first two: position and scale) returns to where its observations put it,
+  // however far from the newest keyframe; the local BA would reach only its window.
+  test::MappingScene scene = test::makeMappingScene({});
+  LocalMapperOptions options = windowOfFour(0);
+  options.global_ba_iterations = 20;
+  const std::vector<map::KeyFrameId> held(scene.ids.begin(), scene.ids.begin() + 2);
+  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
+  for (std::size_t k = 0; k < moved.size(); ++k) {
+    SE3d T_w_b = *scene.map->keyFramePose(moved[k]);
+    const double angle = static_cast<double>(k);
+    T_w_b.t += 0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5);
+    scene.map->setKeyFramePose(moved[k], T_w_b);
+  }
+  const double before = largestPositionError(scene, moved);
+  EXPECT_GT(before, 0.01);
+
+  LocalMapper off(windowOfFour(0), {scene.camera});
+  EXPECT_EQ(off.globalBundleAdjust(*scene.map).observations, 0);  // 0 iterations: no global BA
+  EXPECT_EQ(largestPositionError(scene, moved), before);
+
+  LocalMapper mapper(options, {scene.camera});
+  const BundleAdjustmentResult result = mapper.globalBundleAdjust(*scene.map);
+  const double after = largestPositionError(scene, moved);
+  std::printf("global BA: largest position error %.1f mm -> %.3f mm, %d residuals\n", 1e3 * before,
+              1e3 * after, result.observations);
+  EXPECT_LT(after, 0.5e-3);
+  EXPECT_EQ(largestPositionError(scene, held), 0.0);
+  EXPECT_EQ(scene.map->consistencyError(), "");
+}
+
 TEST(LocalMapperOptions, RejectsANegativeObserverCount) {
   LocalMapperOptions options;
   options.fixed_observer_keyframes = -1;
+  EXPECT_THROW(options.validate(), OptionError);
+  options = {};
+  options.global_ba_iterations = -1;
   EXPECT_THROW(options.validate(), OptionError);
 }
 

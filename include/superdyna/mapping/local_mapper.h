@@ -73,6 +73,11 @@ struct LocalMapperOptions {
   /// (most shared points first), >= 0.
   int inertial_fixed_covisible = 5;
   int inertial_iterations = 5;  ///< Iterations of the VI local BA, >= 1.
+
+  /// Iterations of the global BA after a loop correction, >= 0 (0 = none): every keyframe of
+  /// the map optimised with its points, the map's first keyframe carrying the gauge (fixed pose;
+  /// inertial maps: the full VI BA, its yaw and position held).
+  int global_ba_iterations = 0;
   void validate() const;
   bool operator==(const LocalMapperOptions&) const = default;
 };
@@ -115,6 +120,13 @@ class LocalMapper {
   /// tracker waits for the mapping thread to be idle).
   LocalMappingResult initializeInertialIfDue(map::Map& map, map::KeyFrameId newest);
 
+  /// After a loop closure has moved the map: the global BA (global_ba_iterations), visual-inertial
+  /// once the map is inertially initialised. Runs where the mapping jobs run; the state is solved
+  /// without a lock and written back as one map update, so keyframes and points the tracker adds
+  /// meanwhile keep their poses (ORB-SLAM propagates the global BA's change to them; these
+  /// corrections are millimetres, after the pose graph has closed the loop).
+  BundleAdjustmentResult globalBundleAdjust(map::Map& map);
+
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return initializations_ > 0; }
   const LocalMapperOptions& options() const { return options_; }
@@ -138,6 +150,9 @@ class LocalMapper {
   std::optional<PointTriangulator> triangulator_;
   PointFuser fuser_;
   int initializations_ = 0;  ///< Inertial (re-)initialisations applied to the current map.
+  /// The bias prior of the latest full VI BA [rad/s], [m/s^2] (the global BA keeps it).
+  double bias_prior_sigma_gyro_ = 0.0;
+  double bias_prior_sigma_acc_ = 0.0;
 };
 
 }  // namespace superdyna::mapping

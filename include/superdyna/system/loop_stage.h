@@ -35,7 +35,7 @@ class LoopStage final : public tracking::KeyFrameObserver {
             const optim::PoseOptimizerOptions& pose)
       : closer_(options, camera0, camera, fusion, pose) {}
 
-  void keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) override;
+  bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) override;
   void mapReset() override;
   /// A copy (thread-safe).
   LoopSummary summary() const;

@@ -208,13 +208,15 @@ class MappingSink {
 /// Told about each keyframe of a map once local mapping has processed it, in the thread that runs
 /// the mapping jobs (inside track() without a MappingSink): the loop closer. It may change the
 /// map (as one map update) and record the change with map::Map::recordCorrection(); the tracker
-/// moves its own state (last pose, velocity) and the poses it reports with it.
+/// moves its own state (last pose, velocity) and the poses it reports with it, and after a
+/// correction runs the mapper's global BA (mapping::LocalMapper::globalBundleAdjust).
 class KeyFrameObserver {
  public:
   virtual ~KeyFrameObserver() = default;
   /// Only for keyframes of maps that will not move as a whole any more: visual maps, and inertial
-  /// ones once every inertial (re-)initialisation stage has run (`inertial` then true).
-  virtual void keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) = 0;
+  /// ones once every inertial (re-)initialisation stage has run (`inertial` then true). Returns
+  /// whether it corrected the map (a loop closure).
+  virtual bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) = 0;
   /// The tracker drops its map: forget everything about it.
   virtual void mapReset() = 0;
 };

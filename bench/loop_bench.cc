@@ -1,0 +1,91 @@
+// Cost of place recognition (loop::KeyFrameDatabase) against the size of the map: the query of
+// one keyframe's place descriptors (loop.database_max_descriptors, 400) in an index of N keyframes,
+// for ORB (256-bit binary, Hamming) and float descriptors (XFeat 64-d, SuperPoint 256-d, inner
+// product), and the index memory. Descriptors are random (uniform bits; Gaussian unit vectors):
+// the exact index costs the same whatever they hold (the graph index about the same). Second
+// argument: loop.database_hnsw_search (0 = exact). A keyframe every 0.5 s is 3600 keyframes in a
+// 30-minute sequence.
+// Usage: build/bin/superdyna_loop_bench [benchmark options]
+
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <memory>
+#include <random>
+#include <tuple>
+#include <utility>
+
+#include "superdyna/loop/keyframe_database.h"
+
+namespace {
+
+using superdyna::loop::KeyFrameDatabase;
+
+constexpr int kRows = 400;  // place descriptors per keyframe (the default)
+
+cv::Mat randomRows(int type, int cols, std::mt19937& rng) {
+  cv::Mat rows(kRows, cols, type);
+  if (type == CV_8UC1) {
+    std::uniform_int_distribution<int> byte(0, 255);
+    for (int r = 0; r < rows.rows; ++r)
+      for (int c = 0; c < cols; ++c)
+        rows.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+  } else {
+    std::normal_distribution<float> gauss(0.0f, 1.0f);
+    for (int r = 0; r < rows.rows; ++r)
+      for (int c = 0; c < cols; ++c)
+        rows.at<float>(r, c) = gauss(rng);
+  }
+  return rows;
+}
+
+/// A database of `keyframes` keyframes, built once per (type, cols, size, index) and kept.
+const KeyFrameDatabase& database(int type, int cols, int keyframes, int hnsw_search) {
+  static std::map<std::tuple<int, int, int, int>, std::unique_ptr<KeyFrameDatabase>> built;
+  auto& slot = built[{type, cols, keyframes, hnsw_search}];
+  if (!slot) {
+    superdyna::loop::KeyFrameDatabaseOptions options;
+    options.hnsw_search = hnsw_search;
+    slot = std::make_unique<KeyFrameDatabase>(options);
+    std::mt19937 rng(1);
+    for (int k = 0; k < keyframes; ++k)
+      slot->add(k, randomRows(type, cols, rng));
+  }
+  return *slot;
+}
+
+void query(benchmark::State& state, int type, int cols) {
+  const int keyframes = static_cast<int>(state.range(0));
+  const int hnsw_search = static_cast<int>(state.range(1));
+  const KeyFrameDatabase& db = database(type, cols, keyframes, hnsw_search);
+  std::mt19937 rng(2);
+  const cv::Mat rows = randomRows(type, cols, rng);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(db.query(rows));
+  state.counters["keyframes"] = keyframes;
+  state.counters["index_MB"] = static_cast<double>(db.descriptorBytes()) / 1e6;
+}
+
+void BM_QueryOrb(benchmark::State& state) {
+  query(state, CV_8UC1, 32);
+}
+void BM_QueryXFeat(benchmark::State& state) {
+  query(state, CV_32FC1, 64);
+}
+void BM_QuerySuperPoint(benchmark::State& state) {
+  query(state, CV_32FC1, 256);
+}
+
+BENCHMARK(BM_QueryOrb)
+    ->ArgsProduct({{100, 400, 1600, 3600}, {0, 16, 64}})
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_QueryXFeat)
+    ->ArgsProduct({{100, 400, 1600, 3600}, {0, 16, 64}})
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_QuerySuperPoint)
+    ->ArgsProduct({{100, 400, 1600}, {0, 16, 64}})
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
