@@ -889,7 +889,7 @@ World buildWorldIn(const WorldOptions& static_options, const CameraPath& static_
 }
 
 std::uint64_t staticWorldFingerprint(const World& world) {
-  std::uint64_t hash = mix64(world.scene.objects.size());
+  std::uint64_t hash = mix64(world.scene.objects.front().quads.size());
   const auto add = [&](double value) {
     std::uint64_t bits = 0;
     std::memcpy(&bits, &value, sizeof(bits));
