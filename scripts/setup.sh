@@ -19,7 +19,7 @@ packages=(
   cmake g++ make pkg-config git
   libeigen3-dev libopencv-dev libceres-dev libyaml-cpp-dev libcli11-dev
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev libboost-math-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libfaiss-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libfaiss-dev libcereal-dev
   clang-format python3 python3-numpy python3-onnx
 )
 

@@ -40,6 +40,9 @@ struct EvalArguments {
   std::string rpe_unit = "m";
   std::optional<fs::path> json;
   std::optional<fs::path> plot;
+  std::optional<fs::path> alignment;       ///< A report whose alignment is applied unchanged.
+  std::optional<fs::path> alignment_from;  ///< Another run's estimate to align ...
+  std::optional<fs::path> alignment_gt;    ///< ... to its ground truth.
 };
 
 class EvalCommand : public Command {
@@ -94,6 +97,19 @@ class EvalCommand : public Command {
     sub_->add_option("--json", args_.json, "Write the results as JSON to this file");
     sub_->add_option("--plot", args_.plot,
                      "Write a top-view plot (ground truth and aligned estimates), .svg or .png");
+    auto* given = sub_->add_option(
+        "--alignment", args_.alignment,
+        "Apply this alignment unchanged instead of estimating one: the 'alignment' (R, t, s) of "
+        "a report written by eval --json (e.g. of a run in the same world)");
+    given->check(CLI::ExistingFile);
+    auto* from = sub_->add_option("--alignment-from", args_.alignment_from,
+                                  "Borrow the alignment of another run: the --align alignment "
+                                  "of this estimate to --alignment-gt, applied unchanged");
+    from->check(CLI::ExistingFile)->excludes(given);
+    sub_->add_option("--alignment-gt", args_.alignment_gt,
+                     "Ground truth of the --alignment-from estimate (same formats as --gt)")
+        ->check(CLI::ExistingFile)
+        ->excludes(given);
     sub_->footer(
         "Formats are detected from the content unless given. TUM: 't tx ty tz qx qy qz qw' (s); "
         "EuRoC: 't_ns,px,py,pz,qw,qx,qy,qz,...'; KITTI: 12 numbers a line (3x4 pose).\n"
@@ -105,11 +121,14 @@ class EvalCommand : public Command {
   int run() override {
     std::vector<fs::path> inputs = args_.estimates;
     inputs.push_back(args_.gt);
+    for (const auto& file : {args_.alignment, args_.alignment_from, args_.alignment_gt})
+      if (file) inputs.push_back(*file);
     if (args_.json) requireDistinctOutput(*args_.json, inputs, "--json");
     if (args_.plot) requireDistinctOutput(*args_.plot, inputs, "--plot");
 
-    const eval::EvaluationOptions options = evaluationOptions();
+    eval::EvaluationOptions options = evaluationOptions();
     options.validate();
+    options.given_alignment = givenAlignment(options);
     const Trajectory gt = readGroundTruth();
     std::vector<Trajectory> estimates;
     std::vector<std::string> names;
@@ -136,6 +155,41 @@ class EvalCommand : public Command {
     options.rpe.unit =
         args_.rpe_unit == "frames" ? eval::DeltaUnit::kFrames : eval::DeltaUnit::kMeters;
     return options;
+  }
+
+  /// The alignment of --alignment, or the one of --alignment-from to --alignment-gt.
+  std::optional<Sim3d> givenAlignment(const eval::EvaluationOptions& options) const {
+    if (args_.alignment_from.has_value() != args_.alignment_gt.has_value()) {
+      throw OptionError(args_.alignment_from ? "--alignment-from" : "--alignment-gt",
+                        "--alignment-from and --alignment-gt go together");
+    }
+    if ((args_.alignment || args_.alignment_from) && args_.align_first > 0) {
+      throw OptionError("--align-first", "a given alignment is not estimated on any poses");
+    }
+    if (args_.alignment) {
+      const Sim3d alignment = eval::readAlignmentJson(*args_.alignment);
+      fmt::print("alignment from {} (scale {:.6f}), applied unchanged\n", args_.alignment->string(),
+                 alignment.s);
+      return alignment;
+    }
+    if (!args_.alignment_from) return std::nullopt;
+    const eval::EvaluationResult other = eval::evaluate(
+        readTrajectory(*args_.alignment_gt, args_.gt_format, args_.gt_times, args_.gt_segment),
+        readEstimate(*args_.alignment_from), options);
+    fmt::print("alignment ({}) of {} to {}: ATE rmse {:.6f} m over {} pairs; applied unchanged\n",
+               eval::toString(options.align), args_.alignment_from->string(),
+               args_.alignment_gt->string(), other.ate_trans.rmse, other.pairs);
+    return other.alignment;
+  }
+
+  static Trajectory readTrajectory(const fs::path& file, const std::string& format,
+                                   const std::optional<fs::path>& times,
+                                   const std::optional<int>& segment) {
+    io::TrajectoryReadOptions read;
+    read.format = io::parseTrajectoryFormat(format);
+    read.kitti_times = times;
+    read.segment = segment;
+    return io::readTrajectory(file, read);
   }
 
   Trajectory readGroundTruth() const {

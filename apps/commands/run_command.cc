@@ -21,6 +21,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/map/map_file.h"
 #include "superdyna/semantics/overlay.h"
 #include "superdyna/system/dynamic_log.h"
 #include "superdyna/system/frame_log.h"
@@ -397,6 +398,17 @@ class RunCommand : public Command {
                      "stereo-inertial only; monocular modes run without it (their loops need "
                      "Sim(3), not implemented yet)")
         ->check(CLI::IsMember({"on", "off"}));
+    sub_->add_option("--save-map", save_map_,
+                     "Write the map at the end of the run to this file (versioned binary map "
+                     "file: keyframes, points, descriptors, covisibility, IMU states)");
+    sub_->add_option("--load-map", load_map_,
+                     "Track against the map of this file (made by --save-map with the same "
+                     "features, mode and rig); needs --localization-only")
+        ->check(CLI::ExistingFile);
+    sub_->add_flag("--localization-only", localization_only_,
+                   "With --load-map: locate the first frame in the loaded map and track against "
+                   "it without changing it (no keyframes, points, bundle adjustment or loop "
+                   "closing)");
     sub_->add_flag("--deterministic", deterministic_,
                    "Sequential, single-threaded run: bit-identical output for the same input "
                    "(default: concurrent front end, tracking and local mapping threads)");
@@ -464,6 +476,46 @@ class RunCommand : public Command {
     if (dynamic_log_) requireDistinctOutput(*dynamic_log_, {*config_}, "--dynamic-log");
   }
 
+  /// --load-map / --localization-only / --save-map go together as documented; the map file is
+  /// never written over an input or another output.
+  void checkMapOptions(const fs::path& keyframes_path, const fs::path& config_path) const {
+    if (localization_only_ && !load_map_) {
+      throw OptionError("--localization-only", "needs a map to track against: add --load-map");
+    }
+    if (load_map_ && !localization_only_) {
+      throw OptionError("--load-map",
+                        "continuing to map a loaded map is not supported yet: add "
+                        "--localization-only");
+    }
+    if (localization_only_ && loop_closing_ == "on") {
+      throw OptionError("--loop-closing", "--localization-only never changes the map");
+    }
+    if (!save_map_) return;
+    refuseOutputInsideDataset(*save_map_, "--save-map");
+    std::vector<fs::path> others = {output_, keyframes_path, config_path};
+    if (config_) others.push_back(*config_);
+    if (load_map_) others.push_back(*load_map_);
+    if (online_) others.push_back(*online_);
+    if (frame_log_) others.push_back(*frame_log_);
+    if (dynamic_log_) others.push_back(*dynamic_log_);
+    for (const fs::path& other : others) {
+      if (sameFile(*save_map_, other)) {
+        throw OptionError("--save-map", fmt::format("'{}' is also an input or another output of "
+                                                    "the run",
+                                                    save_map_->string()));
+      }
+    }
+  }
+
+  void saveMap(const system::System& slam) const {
+    const std::optional<map::MapFile> file = slam.mapFile();
+    if (!file) throw InputError(InputLocation(*save_map_), "no map to save: nothing was mapped");
+    map::writeMapFile(*save_map_, *file);
+    fmt::print("map saved to {}: {} keyframes, {} points, inertial stages {}, {} bytes\n",
+               save_map_->string(), file->contents.keyframes.size(), file->contents.points.size(),
+               file->inertial_stages, fs::file_size(*save_map_));
+  }
+
   int run() override {
     refuseOutputInsideDataset(output_, "--output");
     const fs::path keyframes_path = keyFramesPath();
@@ -473,6 +525,7 @@ class RunCommand : public Command {
     if (dynamic_log_) refuseOutputInsideDataset(*dynamic_log_, "--dynamic-log");
     const fs::path config_path = configPath(keyframes_path);
     refuseOutputOntoConfig(keyframes_path);
+    checkMapOptions(keyframes_path, config_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
@@ -515,7 +568,11 @@ class RunCommand : public Command {
       }
       options.loop.enabled = *loop_closing_ == "on";
     }
+    if (localization_only_) options.loop.enabled = false;
     options.deterministic = deterministic_;
+    // Read before the dataset: a damaged map file stops the run at once.
+    std::optional<map::MapFile> loaded;
+    if (load_map_) loaded = map::readMapFile(*load_map_);
     const io::TrajectoryFormat format = io::parseTrajectoryFormat(format_);
 
     io::DatasetSourceOptions source_options;
@@ -530,6 +587,14 @@ class RunCommand : public Command {
     const std::string segmentation = segmenter ? segmenter->description() : "none";
     system::System slam(options, source->camera0(), source->camera1(), source->imu(),
                         std::move(segmenter));
+    if (loaded) {
+      slam.localizeIn(*loaded, *load_map_);
+      fmt::print("localization-only against {}: {} keyframes, {} points ({} features, {})\n",
+                 load_map_->string(), loaded->contents.keyframes.size(),
+                 loaded->contents.points.size(), loaded->identity.feature_type,
+                 loaded->identity.sensor_mode);
+      loaded.reset();
+    }
     std::optional<OverlayWriter> overlay;
     if (overlay_dir_) {
       refuseOutputInsideDataset(*overlay_dir_, "--overlay");
@@ -579,6 +644,7 @@ class RunCommand : public Command {
     io::writeTrajectory(output_, trajectory, format);
     io::writeTrajectory(keyframes_path, keyframes, format);
     if (online_) io::writeTrajectory(*online_, slam.onlineTrajectory(), format);
+    if (save_map_) saveMap(slam);
     fmt::print(
         "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}; wrote {} and {} "
         "({} keyframes)\n",
@@ -587,6 +653,12 @@ class RunCommand : public Command {
     if (imu_gaps > 0) fmt::print("IMU gaps bridged without preintegration: {}\n", imu_gaps);
     fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
                slam.referenceTrackedFrames());
+    if (load_map_) {
+      fmt::print(
+          "localization-only: {} frames not located in the loaded map (not in the "
+          "trajectory)\n",
+          slam.localizingFrames());
+    }
     if (system::isMonocular(options.mode)) {
       fmt::print("monocular: {} frames spent initialising maps (not in the trajectory)\n",
                  slam.initializingFrames());
@@ -630,6 +702,9 @@ class RunCommand : public Command {
   int overlay_every_ = 10;
   std::optional<std::string> loop_closing_;
   bool deterministic_ = false;
+  std::optional<fs::path> save_map_;
+  std::optional<fs::path> load_map_;
+  bool localization_only_ = false;
 };
 
 }  // namespace

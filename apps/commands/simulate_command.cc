@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "superdyna/core/error.h"
 #include "superdyna/sim/sequence_generator.h"
 
 namespace superdyna::apps {
@@ -115,6 +116,12 @@ class SimulateCommand : public Command {
   }
 
   void addSceneOptions() {
+    sub_->add_option("--world-of", world_of_,
+                     "Reuse the static world (ground, buildings or room, clutter; not the agents) "
+                     "of an earlier simulated sequence, so that both ground truths share its world "
+                     "frame: give this sequence another --seed and part of the trajectory "
+                     "(--start, --duration) inside that world")
+        ->check(CLI::ExistingDirectory);
     sub_->add_option("--scene", scene_, "World: street, parking or indoor")
         ->check(CLI::IsMember({"street", "parking", "indoor"}))
         ->capture_default_str();
@@ -321,6 +328,26 @@ class SimulateCommand : public Command {
     if (!imu_rotation_.empty()) options_.rig.imu_rotation_deg = vector3(imu_rotation_);
     options_.motion_blur_exposure_s = 1e-3 * exposure_ms_;
     sim::setIlluminationModes(illumination_, &options_.illumination);
+    if (world_of_) applyWorldOf(*world_of_);
+  }
+
+  /// The scene and textures come with the reused world.
+  void applyWorldOf(const fs::path& sequence) {
+    options_.world_of = sim::readWorldSource(sequence);
+    const sim::WorldSource& source = *options_.world_of;
+    if (sub_->count("--scene") > 0 && options_.world.scene != source.scene) {
+      throw OptionError("--scene", fmt::format("the world of {} is a {} scene", sequence.string(),
+                                               sim::toString(source.scene)));
+    }
+    if (texture_dir_) {
+      throw OptionError("--textures", "the reused world of --world-of brings its own textures");
+    }
+    options_.world.scene = source.scene;
+    options_.texture_dir = source.texture_dir;
+    if (fs::weakly_canonical(fs::absolute(sequence)) ==
+        fs::weakly_canonical(fs::absolute(options_.output_dir))) {
+      throw OptionError("--out", "is the --world-of sequence itself");
+    }
   }
 
   static Eigen::Vector3d vector3(const std::vector<double>& values) {
@@ -339,6 +366,7 @@ class SimulateCommand : public Command {
   std::string pattern_ = "none";
   std::vector<double> pattern_distance_;
   std::optional<fs::path> texture_dir_;
+  std::optional<fs::path> world_of_;
   std::string noise_ = "on";
   std::string distortion_ = "off";
   std::vector<double> imu_offset_;

@@ -81,8 +81,11 @@ EvaluationResult evaluate(const Trajectory& gt, const Trajectory& est,
   result.pairs = matched.size();
   result.align = options.align;
   result.align_first_n = options.align_first_n;
-  result.alignment = alignPositions(positionsOf(matched.est), positionsOf(matched.gt),
-                                    options.align, options.align_first_n);
+  result.alignment_given = options.given_alignment.has_value();
+  result.alignment = options.given_alignment
+                         ? *options.given_alignment
+                         : alignPositions(positionsOf(matched.est), positionsOf(matched.gt),
+                                          options.align, options.align_first_n);
 
   const AteResult ate = computeAte(matched.gt, matched.est, result.alignment);
   result.ate_trans = ate.trans;

@@ -1,6 +1,9 @@
 #include "superdyna/eval/report_json.h"
 
 #include <cmath>
+#include <fstream>
+
+#include "superdyna/core/error.h"
 
 namespace superdyna::eval {
 namespace {
@@ -17,7 +20,7 @@ nlohmann::json alignmentJson(const EvaluationResult& result) {
     rows.push_back({result.alignment.R(r, 0), result.alignment.R(r, 1), result.alignment.R(r, 2)});
   }
   const Eigen::Vector3d& t = result.alignment.t;
-  return {{"mode", toString(result.align)},
+  return {{"mode", result.alignment_given ? std::string("given") : toString(result.align)},
           {"R", rows},
           {"t", {t.x(), t.y(), t.z()}},
           {"s", result.alignment.s},
@@ -83,6 +86,46 @@ nlohmann::json toJson(const MultiRunResult& result) {
       {"rpe_unit_rot", rpeRotUnit(unit)},
   };
   return {{"runs", runs}, {"summary", summary}};
+}
+
+Sim3d readAlignmentJson(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw InputError(InputLocation(file), "cannot open the alignment file");
+  nlohmann::json json;
+  try {
+    json = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(InputLocation(file), std::string("not JSON: ") + e.what());
+  }
+  if (json.contains("runs")) {
+    if (!json["runs"].is_array() || json["runs"].size() != 1)
+      throw InputError(InputLocation(file, 0, "runs"),
+                       "an alignment needs a report of exactly one run");
+    json = json["runs"][0];
+  }
+  if (!json.contains("alignment") || !json["alignment"].is_object())
+    throw InputError(InputLocation(file, 0, "alignment"),
+                     "no 'alignment' object (write one with superdyna eval --json)");
+  const nlohmann::json& a = json["alignment"];
+  Sim3d alignment;
+  try {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        alignment.R(r, c) =
+            a.at("R").at(static_cast<std::size_t>(r)).at(static_cast<std::size_t>(c)).get<double>();
+    for (int k = 0; k < 3; ++k)
+      alignment.t[k] = a.at("t").at(static_cast<std::size_t>(k)).get<double>();
+    alignment.s = a.at("s").get<double>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(InputLocation(file, 0, "alignment"), std::string("malformed: ") + e.what());
+  }
+  const double orthonormality =
+      (alignment.R * alignment.R.transpose() - Eigen::Matrix3d::Identity()).norm();
+  if (!alignment.R.allFinite() || !alignment.t.allFinite() || !(orthonormality < 1e-6) ||
+      !(alignment.R.determinant() > 0.0) || !(alignment.s > 0.0) || !std::isfinite(alignment.s))
+    throw InputError(InputLocation(file, 0, "alignment"),
+                     "R must be a rotation, t finite and s positive");
+  return alignment;
 }
 
 }  // namespace superdyna::eval

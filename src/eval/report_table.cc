@@ -19,6 +19,7 @@ std::string statisticsRow(const std::string& label, const ErrorStatistics& s) {
 }
 
 std::string alignmentDescription(const EvaluationResult& result) {
+  if (result.alignment_given) return fmt::format("given, scale {:.6f}", result.scale());
   if (result.align == AlignmentMode::kNone) return "none";
   const std::string over =
       result.align_first_n > 0 && result.align_first_n < static_cast<int>(result.pairs)

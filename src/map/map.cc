@@ -670,4 +670,95 @@ std::string Map::consistencyError() const {
   return error.empty() ? covisibilityError() : error;
 }
 
+// ---- Contents (map files) ----------------------------------------------------------------------
+
+namespace {
+
+std::invalid_argument contentsError(const std::string& what) {
+  return std::invalid_argument("map contents: " + what);
+}
+
+}  // namespace
+
+std::unique_ptr<Map> Map::fromContents(MapOptions options, MapContents contents) {
+  auto map = std::make_unique<Map>(std::move(options));
+  map->next_keyframe_id_ = contents.next_keyframe_id;
+  map->next_point_id_ = contents.next_point_id;
+  std::unordered_map<KeyFrameId, std::vector<MapPointId>> slots;
+  for (KeyFrame& keyframe : contents.keyframes) {
+    const std::string name = "keyframe " + std::to_string(keyframe.id);
+    if (keyframe.id < 0 || keyframe.id >= contents.next_keyframe_id)
+      throw contentsError(name + ": id outside [0, " + std::to_string(contents.next_keyframe_id) +
+                          ")");
+    if (map->keyframes_.contains(keyframe.id)) throw contentsError(name + ": duplicate id");
+    if (keyframe.map_points.size() != keyframe.keypoints.size())
+      throw contentsError(name + ": " + std::to_string(keyframe.map_points.size()) +
+                          " map point slots for " + std::to_string(keyframe.keypoints.size()) +
+                          " keypoints");
+    try {
+      map->validateKeyFrame(keyframe);
+    } catch (const std::invalid_argument& e) {
+      throw contentsError(name + ": " + e.what());
+    }
+    slots[keyframe.id] = keyframe.map_points;
+    keyframe.map_points.assign(keyframe.keypoints.size(), kNoMapPoint);
+    map->newest_keyframe_ = std::max(map->newest_keyframe_, keyframe.id);
+    map->covisibility_[keyframe.id];
+    const KeyFrameId id = keyframe.id;
+    map->keyframes_.emplace(id, std::move(keyframe));
+  }
+  for (const auto& [id, keyframe] : map->keyframes_) {
+    if (keyframe.previous != kNoKeyFrame && !map->keyframes_.contains(keyframe.previous))
+      throw contentsError("keyframe " + std::to_string(id) + ": predecessor " +
+                          std::to_string(keyframe.previous) + " is not in the map");
+  }
+  for (MapPoint& point : contents.points) {
+    const std::string name = "map point " + std::to_string(point.id);
+    if (point.id < 0 || point.id >= contents.next_point_id)
+      throw contentsError(name + ": id outside [0, " + std::to_string(contents.next_point_id) +
+                          ")");
+    if (point.bad) throw contentsError(name + ": flagged bad");
+    if (map->points_.contains(point.id)) throw contentsError(name + ": duplicate id");
+    const std::map<KeyFrameId, int> observations = std::move(point.observations);
+    point.observations.clear();
+    MapPoint& stored = map->points_.emplace(point.id, std::move(point)).first->second;
+    for (const auto& [keyframe_id, index] : observations) {
+      KeyFrame* keyframe = map->findKeyFrame(keyframe_id);
+      if (keyframe == nullptr)
+        throw contentsError(name + ": observed by unknown keyframe " + std::to_string(keyframe_id));
+      if (index < 0 || static_cast<std::size_t>(index) >= keyframe->keypoints.size())
+        throw contentsError(name + ": keypoint index " + std::to_string(index) +
+                            " outside keyframe " + std::to_string(keyframe_id));
+      const std::size_t i = static_cast<std::size_t>(index);
+      if (slots[keyframe_id][i] != stored.id || keyframe->map_points[i] != kNoMapPoint ||
+          !keyframe->keypoints[i].valid())
+        throw contentsError(name + ": keyframe " + std::to_string(keyframe_id) + " keypoint " +
+                            std::to_string(index) + " does not observe it");
+      map->attachObservation(stored, *keyframe, index);
+    }
+  }
+  for (const auto& [id, keyframe] : map->keyframes_) {
+    if (keyframe.map_points != slots[id])
+      throw contentsError("keyframe " + std::to_string(id) +
+                          ": a map point slot names a point that does not list the observation");
+  }
+  return map;
+}
+
+MapContents Map::contents() const {
+  const std::lock_guard lock(mutex_);
+  MapContents contents;
+  contents.next_keyframe_id = next_keyframe_id_;
+  contents.next_point_id = next_point_id_;
+  for (const auto& [id, keyframe] : keyframes_)
+    contents.keyframes.push_back(keyframe);
+  for (const auto& [id, point] : points_)
+    if (!point.bad) contents.points.push_back(point);
+  std::sort(contents.keyframes.begin(), contents.keyframes.end(),
+            [](const KeyFrame& a, const KeyFrame& b) { return a.id < b.id; });
+  std::sort(contents.points.begin(), contents.points.end(),
+            [](const MapPoint& a, const MapPoint& b) { return a.id < b.id; });
+  return contents;
+}
+
 }  // namespace superdyna::map

@@ -15,6 +15,7 @@
 #include <set>
 
 #include "superdyna/core/error.h"
+#include "superdyna/io/yaml_file.h"
 #include "superdyna/sim/renderer.h"
 #include "superdyna/sim/se3_spline.h"
 
@@ -594,8 +595,27 @@ std::string blurSamplesText(int samples) {
   return samples == 0 ? std::string("auto") : std::to_string(samples);
 }
 
+std::string optionalText(const std::optional<fs::path>& path, const std::string& none) {
+  return path ? path->string() : none;
+}
+
+void writeWorldSource(std::ostream& out, const WorldSource& w) {
+  out << fmt::format(
+      "# What rebuilds this sequence's static world (superdyna simulate --world-of).\n"
+      "world_source:\n  sequence: {}\n  trajectory: {}\n  trajectory_format: {}\n"
+      "  trajectory_times: {}\n  segment: {}\n  motion_convention: {}\n  mount_height_m: {}\n"
+      "  start_s: {}\n  duration_s: {}\n  knot_spacing_s: {}\n  scene: {}\n  seed: {}\n"
+      "  texture_dir: {}\n  static_world_fingerprint: {}\n",
+      w.sequence.string(), optionalText(w.motion.trajectory_file, "procedural"),
+      io::toString(w.motion.read.format), optionalText(w.motion.read.kitti_times, "none"),
+      w.motion.read.segment ? std::to_string(*w.motion.read.segment) : std::string("none"),
+      toString(w.motion.convention), w.motion.mount_height_m, w.motion.start_s, w.motion.duration_s,
+      w.knot_spacing_s, toString(w.scene), w.seed, optionalText(w.texture_dir, "procedural"),
+      w.fingerprint);
+}
+
 void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const MotionWindow& m,
-                         const SimulationSummary& s) {
+                         const SimulationSummary& s, const WorldSource& world_source) {
   auto out = openForWriting(file);
   const IlluminationOptions& il = o.illumination;
   out << fmt::format(
@@ -642,6 +662,70 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
       s.mean_unlabelled_moving_coverage, s.mean_moving_corner_share, s.max_moving_corner_share,
       s.mean_surface_coverage, s.path_length_m, s.mean_blur_samples, s.mean_exposure_motion_px,
       s.max_exposure_motion_px, s.min_gain, s.max_gain);
+  if (o.world_of) out << "world_of: " << o.world_of->sequence.string() << "\n";
+  writeWorldSource(out, world_source);
+}
+
+std::optional<fs::path> absolute(const std::optional<fs::path>& path) {
+  if (!path) return std::nullopt;
+  return fs::absolute(*path).lexically_normal();
+}
+
+CameraPath cameraPathOf(const Se3Spline& spline, const MotionWindow& motion,
+                        const RigOptions& rig) {
+  const CameraModel camera = rig.cameraModel();
+  CameraPath camera_path;
+  const SE3d T_b_c0 = rig.T_b_c0();
+  camera_path.T_w_c = [&spline, T_b_c0](TimeNs t) { return spline.pose(t) * T_b_c0; };
+  camera_path.range = motion.window;
+  camera_path.horizontal_fov_rad = 2.0 * std::atan(0.5 * camera.width() / camera.fx());
+  return camera_path;
+}
+
+/// This sequence's world: its own, or the static world of options.world_of with its agents; the
+/// source its simulation.yaml records.
+std::pair<World, WorldSource> buildSequenceWorld(const SimulationOptions& options,
+                                                 const CameraPath& camera_path) {
+  WorldOptions world_options = options.world;
+  world_options.seed = options.seed;
+  if (!options.world_of) {
+    if (options.texture_dir) world_options.photos = loadPhotos(*options.texture_dir);
+    World world = buildWorld(world_options, camera_path);
+    WorldSource source{fs::absolute(options.output_dir).lexically_normal(),
+                       options.motion,
+                       options.knot_spacing_s,
+                       options.world.scene,
+                       options.seed,
+                       absolute(options.texture_dir),
+                       staticWorldFingerprint(world)};
+    source.motion.trajectory_file = absolute(options.motion.trajectory_file);
+    source.motion.read.kitti_times = absolute(options.motion.read.kitti_times);
+    return {std::move(world), std::move(source)};
+  }
+  const WorldSource& from = *options.world_of;
+  SimulationOptions source_options = options;
+  source_options.motion = from.motion;
+  source_options.knot_spacing_s = from.knot_spacing_s;
+  const MotionWindow source_motion = loadMotion(from.motion, proceduralExtent(from.scene));
+  const Se3Spline source_spline = fitMotion(source_motion, source_options);
+  WorldOptions static_options = world_options;
+  static_options.scene = from.scene;
+  static_options.seed = from.seed;
+  if (from.texture_dir) static_options.photos = loadPhotos(*from.texture_dir);
+  world_options.scene = from.scene;
+  world_options.photos = static_options.photos;
+  World world =
+      buildWorldIn(static_options, cameraPathOf(source_spline, source_motion, options.rig),
+                   world_options, camera_path);
+  const std::uint64_t fingerprint = staticWorldFingerprint(world);
+  if (fingerprint != from.fingerprint) {
+    throw InputError(InputLocation(from.sequence / "simulation.yaml", 0,
+                                   "world_source.static_world_fingerprint"),
+                     fmt::format("the static world rebuilt from it has fingerprint {}, the "
+                                 "sequence recorded {}: its trajectory or texture files changed",
+                                 fingerprint, from.fingerprint));
+  }
+  return {std::move(world), from};
 }
 
 }  // namespace
@@ -725,16 +809,8 @@ SimulationSummary generateSequence(const SimulationOptions& options,
   const Se3Spline spline = fitMotion(motion, options);
   prepareOutputFolder(options.output_dir, options.overwrite);
 
-  const CameraModel camera = options.rig.cameraModel();
-  CameraPath camera_path;
-  const SE3d T_b_c0 = options.rig.T_b_c0();
-  camera_path.T_w_c = [&](TimeNs t) { return spline.pose(t) * T_b_c0; };
-  camera_path.range = motion.window;
-  camera_path.horizontal_fov_rad = 2.0 * std::atan(0.5 * camera.width() / camera.fx());
-  WorldOptions world_options = options.world;
-  world_options.seed = options.seed;
-  if (options.texture_dir) world_options.photos = loadPhotos(*options.texture_dir);
-  const World world = buildWorld(world_options, camera_path);
+  const CameraPath camera_path = cameraPathOf(spline, motion, options.rig);
+  const auto [world, world_source] = buildSequenceWorld(options, camera_path);
 
   ImuNoiseOptions imu_options = options.imu;
   imu_options.noise = options.noise;
@@ -770,10 +846,63 @@ SimulationSummary generateSequence(const SimulationOptions& options,
     }
   }
   // No wall-clock time in the files: the same seed must give byte-identical output.
-  writeSimulationYaml(options.output_dir / "simulation.yaml", options, motion, summary);
+  writeSimulationYaml(options.output_dir / "simulation.yaml", options, motion, summary,
+                      world_source);
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return summary;
+}
+
+WorldSource readWorldSource(const fs::path& sequence) {
+  const fs::path file = sequence / "simulation.yaml";
+  if (!fs::exists(file)) {
+    throw InputError(InputLocation(file),
+                     "missing: --world-of needs a sequence written by "
+                     "superdyna simulate");
+  }
+  const io::YamlFile yaml = io::YamlFile::load(file);
+  if (!yaml.has("world_source")) {
+    throw InputError(InputLocation(file, 0, "world_source"),
+                     "missing (written by an older superdyna): regenerate the sequence");
+  }
+  const YAML::Node node = yaml.child("world_source");
+  const auto text = [&](const std::string& key) {
+    return yaml.scalar(yaml.child(node, key, "world_source." + key), "world_source." + key);
+  };
+  const auto number = [&](const std::string& key) {
+    return yaml.number(yaml.child(node, key, "world_source." + key), "world_source." + key);
+  };
+  const auto path = [&](const std::string& key, const std::string& none) {
+    const std::string value = text(key);
+    return value == none ? std::nullopt : std::optional<fs::path>(value);
+  };
+  const auto integer = [&](const std::string& key) {
+    const std::string value = text(key);
+    try {
+      std::size_t used = 0;
+      const unsigned long long parsed = std::stoull(value, &used);
+      if (used == value.size()) return static_cast<std::uint64_t>(parsed);
+    } catch (const std::exception&) {
+    }
+    throw InputError(yaml.at(node[key], "world_source." + key),
+                     "expected a non-negative integer, got '" + value + "'");
+  };
+  WorldSource source;
+  source.sequence = text("sequence");
+  source.motion.trajectory_file = path("trajectory", "procedural");
+  source.motion.read.format = io::parseTrajectoryFormat(text("trajectory_format"));
+  source.motion.read.kitti_times = path("trajectory_times", "none");
+  if (text("segment") != "none") source.motion.read.segment = static_cast<int>(integer("segment"));
+  source.motion.convention = parseMotionConvention(text("motion_convention"));
+  source.motion.mount_height_m = number("mount_height_m");
+  source.motion.start_s = number("start_s");
+  source.motion.duration_s = number("duration_s");
+  source.knot_spacing_s = number("knot_spacing_s");
+  source.scene = parseSceneType(text("scene"));
+  source.seed = integer("seed");
+  source.texture_dir = path("texture_dir", "procedural");
+  source.fingerprint = integer("static_world_fingerprint");
+  return source;
 }
 
 }  // namespace superdyna::sim

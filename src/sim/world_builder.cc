@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
+#include <set>
 #include <stdexcept>
 
 #include "superdyna/core/error.h"
@@ -184,6 +186,12 @@ class WorldBuilder {
   }
 
   World build() {
+    buildStatic();
+    return buildAgents();
+  }
+
+  /// The static world: ground, room or buildings, clutter.
+  void buildStatic() {
     addGround();
     if (options_.scene == SceneType::kIndoor) {
       addRoom();
@@ -191,11 +199,35 @@ class WorldBuilder {
       addBuildings();
     }
     addClutter();
+  }
+
+  /// The agents around this builder's path, drawn from its seed.
+  World buildAgents() {
     addStaticAgents();
     addMovingAgents();
     addPatternGroups();
     relabelUnlabelledMovers();
     return std::move(world_);
+  }
+
+  /// Continues on the static world `other` built (its scene, ground, region and footprints); the
+  /// agents then follow this builder's path and seed. Throws OptionError when this path leaves
+  /// that world or passes within 0.5 m of one of its blocks.
+  void adoptStaticWorld(WorldBuilder&& other) {
+    world_ = std::move(other.world_);
+    region_min_ = other.region_min_;
+    region_max_ = other.region_max_;
+    footprints_ = std::move(other.footprints_);
+    for (std::size_t i = 0; i < samples_.position.size(); ++i) {
+      const Eigen::Vector2d xy = samples_.position[i].head<2>();
+      const bool blocked = overlapsFootprints(xy, Eigen::Vector2d::Constant(0.5), 0.0);
+      if (insideRegion(xy, 0.5) && !blocked) continue;
+      throw OptionError("world-of",
+                        fmt::format("the camera path {} the reused world at t = {:.2f} s (x {:.1f} "
+                                    "m, y {:.1f} m): choose a part of the trajectory within it",
+                                    blocked ? "runs into a block of" : "leaves",
+                                    nsToSeconds(samples_.t_ns[i]), xy.x(), xy.y()));
+    }
   }
 
  private:
@@ -843,6 +875,50 @@ void WorldOptions::validate() const {
   if (!(unlabelled_share >= 0.0 && unlabelled_share <= 1.0)) {
     throw OptionError("unlabelled", fmt::format("must be in [0, 1], got {}", unlabelled_share));
   }
+}
+
+World buildWorldIn(const WorldOptions& static_options, const CameraPath& static_path,
+                   const WorldOptions& options, const CameraPath& camera_path) {
+  static_options.validate();
+  options.validate();
+  WorldBuilder static_builder(static_options, static_path);
+  static_builder.buildStatic();
+  WorldBuilder builder(options, camera_path);
+  builder.adoptStaticWorld(std::move(static_builder));
+  return builder.buildAgents();
+}
+
+std::uint64_t staticWorldFingerprint(const World& world) {
+  std::uint64_t hash = mix64(world.scene.objects.front().quads.size());
+  const auto add = [&](double value) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &value, sizeof(bits));
+    hash = mix64(hash ^ bits);
+  };
+  add(world.ground_z);
+  std::set<int> textures;
+  for (const Quad& quad : world.scene.objects.front().quads) {
+    for (const Eigen::Vector3d& v : {quad.origin, quad.edge_u, quad.edge_v})
+      for (int k = 0; k < 3; ++k)
+        add(v[k]);
+    add(quad.texture_offset_m.x());
+    add(quad.texture_offset_m.y());
+    add(static_cast<double>(quad.texture));
+    textures.insert(quad.texture);
+  }
+  for (const int index : textures) {
+    const Texture& texture = world.scene.textures.at(static_cast<std::size_t>(index));
+    add(texture.texelSizeM());
+    const cv::Mat image =
+        texture.image().isContinuous() ? texture.image() : texture.image().clone();
+    const std::size_t bytes = image.total() * image.elemSize();
+    for (std::size_t i = 0; i + 8 <= bytes; i += 8) {
+      std::uint64_t word = 0;
+      std::memcpy(&word, image.data + i, sizeof(word));
+      hash = mix64(hash ^ word);
+    }
+  }
+  return hash;
 }
 
 World buildWorld(const WorldOptions& options, const CameraPath& camera_path) {

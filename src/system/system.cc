@@ -8,6 +8,7 @@
 
 #include "superdyna/core/bounded_queue.h"
 #include "superdyna/core/error.h"
+#include "superdyna/features/extractor_factory.h"
 #include "superdyna/mapping/map_inertial_alignment.h"
 
 namespace superdyna::system {
@@ -72,6 +73,29 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+map::MapIdentity rigIdentity(const SystemOptions& options, const io::CameraCalibration& cam0,
+                             const std::optional<io::CameraCalibration>& cam1,
+                             const std::optional<io::ImuCalibration>& imu) {
+  map::MapIdentity identity;
+  identity.feature_type = features::toString(options.front_end.features.type);
+  identity.sensor_mode = toString(options.mode);
+  identity.cameras.push_back(cam0);
+  if (cam1 && !isMonocular(options.mode)) identity.cameras.push_back(*cam1);
+  if (imu && usesImu(options.mode)) identity.T_b_i = imu->T_b_i;
+  return identity;
+}
+
+/// The type and width of the descriptors of the map's first keyframe that has some.
+void setDescriptorIdentity(const map::MapContents& contents, map::MapIdentity& identity) {
+  for (const map::KeyFrame& kf : contents.keyframes) {
+    if (kf.descriptors.empty()) continue;
+    identity.descriptor_type = kf.descriptors.type() == CV_32FC1 ? map::MapDescriptorType::kFloat
+                                                                 : map::MapDescriptorType::kBinary;
+    identity.descriptor_columns = kf.descriptors.cols;
+    return;
+  }
+}
+
 SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
@@ -99,6 +123,7 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
           tracking::PyramidInfo{front_end_.pyramid().scale_factor, front_end_.pyramid().levels},
           options_.mapping, cam0, isMonocular(options_.mode) ? std::nullopt : cam1,
           usesImu(options_.mode) ? imu : std::nullopt) {
+  identity_ = rigIdentity(options_, cam0, cam1, imu);
   if (usesImu(options_.mode) && !imu) {
     throw OptionError("--mode", toString(options_.mode) + " needs IMU calibration and samples");
   }
@@ -138,6 +163,10 @@ void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
     ++initializing_frames_;
     return;
   }
+  if (result.state == tracking::TrackingState::kLocalizing) {
+    ++localizing_frames_;
+    return;
+  }
   FrameRecord frame{{t_ns, result.T_w_b}, tracker_.resets(), result.reference, {}};
   if (result.reference != map::kNoKeyFrame) {
     const SE3d& T_b_c = tracker_.T_b_c0();
@@ -171,6 +200,27 @@ Trajectory System::onlineTrajectory() const {
   for (const FrameRecord& frame : frames_)
     trajectory.push_back(frame.online);
   return trajectory;
+}
+
+std::optional<map::MapFile> System::mapFile() const {
+  if (!tracker_.hasMap() || tracker_.map().numKeyFrames() == 0) return std::nullopt;
+  // Localization-only: the loaded map, unchanged, with its right-camera observations.
+  std::map<map::KeyFrameId, map::RightKeypoints> right = loaded_right_;
+  if (!tracker_.localizationOnly()) {
+    for (const auto& [id, observations] : tracker_.mapper().rightObservations())
+      right.emplace(id, observations);
+  }
+  map::MapFile file =
+      map::makeMapFile(tracker_.map(), identity_, std::move(right), tracker_.inertialStages());
+  setDescriptorIdentity(file.contents, file.identity);
+  return file;
+}
+
+void System::localizeIn(const map::MapFile& file, const std::filesystem::path& name) {
+  const std::string mismatch = map::identityMismatch(file.identity, identity_);
+  if (!mismatch.empty()) throw InputError(InputLocation(name), "map file: " + mismatch);
+  tracker_.localizeIn(map::buildMap(file), file.inertial_stages);
+  loaded_right_ = file.right;
 }
 
 LoopSummary System::loopSummary() const {

@@ -80,6 +80,8 @@ const char* toString(TrackingState state) {
       return "initializing";
     case TrackingState::kRecentlyLost:
       return "recently-lost";
+    case TrackingState::kLocalizing:
+      return "localizing";
   }
   return "?";
 }
@@ -158,7 +160,7 @@ SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
 
 std::optional<InertialPrediction> Tracker::predictInertial(const Frame& frame) const {
   // The tracker's own count, not the mapper's: the mapper's state belongs to the mapping thread.
-  if (!imu_ || !has_map_ || !inertialInitialized()) return std::nullopt;
+  if (!imu_ || !has_map_ || !inertialInitialized() || localization_only_) return std::nullopt;
   std::optional<InertialPrediction> prediction;
   map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
     prediction = predictFromKeyFrame(kf, imu_since_keyframe_.samples(), frame.t_ns, imu_->T_b_i,
@@ -218,6 +220,13 @@ TrackingResult Tracker::track(const Frame& input) {
     without_moving = removeMovingFeatures(input, prediction, result, kept);
   }
   const Frame& frame = without_moving ? *without_moving : input;
+  if (localization_only_ && !located_) {
+    const std::vector<map::MapPointId> tracked = locateInLoadedMap(frame, result);
+    result.times.track_ms = millisecondsSince(start);
+    rememberFrame(input, kept, tracked);
+    if (located_) updateMotion(result.T_w_b, frame.t_ns);
+    return result;
+  }
   if (!has_map_ && isMonocular()) {
     initializeMono(frame, result);
     if (result.state == TrackingState::kInitialized) noteReference(result);
@@ -240,6 +249,9 @@ TrackingResult Tracker::track(const Frame& input) {
   bool wants_keyframe = false;
   if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
     result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
+  } else if (result.inliers < options_.min_inliers && localization_only_) {
+    located_ = false;  // the next frames are located in the loaded map again
+    result.state = TrackingState::kLost;
   } else if (result.inliers < options_.min_inliers) {
     has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
     result.state = TrackingState::kLost;
@@ -247,7 +259,8 @@ TrackingResult Tracker::track(const Frame& input) {
   } else {
     result.state = TrackingState::kTracking;
     t_tracked_ns_ = frame.t_ns;
-    wants_keyframe = needKeyFrame(frame, result.inliers);
+    wants_keyframe = !localization_only_ && needKeyFrame(frame, result.inliers);
+    if (localization_only_) followTrackedKeyFrame(tracked);
   }
   if (has_map_) noteReference(result);
   reading.unlock();  // a new keyframe is submitted to (and may wait for) the mapping thread
@@ -330,6 +343,7 @@ std::vector<map::MapPointId> Tracker::trackFrame(const Frame& frame, const Predi
 }
 
 std::vector<map::MapPointId> Tracker::countObservations(LocalMapTrack track, bool found) {
+  if (localization_only_) return std::move(track.tracked);  // the loaded map stays as it is
   for (const map::MapPointId id : track.visible)
     map_->increaseVisible(id);
   if (found) {
@@ -358,12 +372,12 @@ std::optional<Tracker::LocalMapTrack> Tracker::trackFromReference(const Frame& f
   return track;
 }
 
-ReferenceView Tracker::referenceView() const {
+ReferenceView Tracker::referenceView(map::KeyFrameId id) const {
   // Copy the keyframe's observations first: map reads must not nest.
   std::vector<std::pair<map::MapPointId, features::Keypoint>> observed;
   std::vector<cv::Mat> rows;
   features::DescriptorType type = features::DescriptorType::kBinary;
-  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
+  map_->readKeyFrame(id, [&](const map::KeyFrame& kf) {
     if (kf.descriptors.empty()) return;
     if (kf.descriptors.type() == CV_32FC1) type = features::DescriptorType::kFloat;
     for (std::size_t i = 0; i < kf.map_points.size(); ++i) {

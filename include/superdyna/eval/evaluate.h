@@ -3,6 +3,7 @@
 // reports it: associate by time, align (Umeyama), then ATE and RPE.
 
 #include <cstddef>
+#include <optional>
 #include <vector>
 
 #include "superdyna/core/trajectory.h"
@@ -17,6 +18,10 @@ struct EvaluationOptions {
   AlignmentMode align = AlignmentMode::kSE3;
   /// Align with only the first N associated poses (N <= 0: all). Errors use every pose.
   int align_first_n = 0;
+  /// A given alignment (estimate frame -> ground-truth frame), applied unchanged instead of one
+  /// estimated with `align` (e.g. the alignment of another run of the same world: both ground
+  /// truths share the world frame). `align` still says whether the RPE is scaled (sim3).
+  std::optional<Sim3d> given_alignment;
   AssociationOptions association;
   RpeOptions rpe;
 
@@ -40,7 +45,8 @@ struct EvaluationResult {
 
   AlignmentMode align = AlignmentMode::kSE3;
   int align_first_n = 0;
-  Sim3d alignment;  ///< Maps the estimate frame into the ground-truth frame.
+  Sim3d alignment;               ///< Maps the estimate frame into the ground-truth frame.
+  bool alignment_given = false;  ///< EvaluationOptions::given_alignment, not estimated.
   double scale() const { return alignment.s; }
 
   ErrorStatistics ate_trans;  ///< [m]

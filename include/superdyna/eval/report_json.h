@@ -3,6 +3,7 @@
 // the unit stated by its key or by the rpe_unit_* keys; NaN (e.g. the interval of a single run)
 // is written as null.
 
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "superdyna/eval/evaluate.h"
@@ -21,5 +22,10 @@ nlohmann::json toJson(const EvaluationResult& result);
 /// ate_rmse_ci95_halfwidth, rpe_trans_median, rpe_trans_mean, rpe_trans_ci95_halfwidth,
 /// rpe_rot_median, rpe_rot_mean, rpe_rot_ci95_halfwidth, rpe_unit_trans, rpe_unit_rot}}.
 nlohmann::json toJson(const MultiRunResult& result);
+
+/// The alignment (R, t, s) of a report written by toJson (one run, or a multi-run report of one
+/// run): the `alignment` object. InputError naming the file and field when missing or malformed,
+/// or when R is no rotation.
+Sim3d readAlignmentJson(const std::filesystem::path& file);
 
 }  // namespace superdyna::eval

@@ -39,6 +39,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -94,6 +95,17 @@ struct MapCorrection {
   SE3d correctionAt(TimeNs t_ns) const;
 };
 
+/// Everything that makes up a map, ids included: what a map file stores (map_file.h). The
+/// covisibility graph and the point descriptors' owners follow from the observations.
+struct MapContents {
+  /// By increasing id; map_points hold the observations (one slot per keypoint).
+  std::vector<KeyFrame> keyframes;
+  /// Points that are not bad, by increasing id; observations agree with the keyframes' slots.
+  std::vector<MapPoint> points;
+  KeyFrameId next_keyframe_id = 0;  ///< The id the next keyframe added gets.
+  MapPointId next_point_id = 0;     ///< ... and the next point.
+};
+
 class Map {
  public:
   /// Validates the options (OptionError).
@@ -102,6 +114,16 @@ class Map {
   Map& operator=(const Map&) = delete;
 
   const MapOptions& options() const { return options_; }
+
+  /// A map holding `contents` with their ids (a loaded map file). Throws std::invalid_argument
+  /// describing the first inconsistency: duplicate or out-of-range ids, a predecessor that is not
+  /// in the map, descriptors or slots that do not match the keypoints, an observation of an
+  /// unknown keyframe, an invalid keypoint or another point's slot, slots without the point's
+  /// observation.
+  static std::unique_ptr<Map> fromContents(MapOptions options, MapContents contents);
+  /// The keyframes and points (not bad) by increasing id, and the id counters (under the lock).
+  /// Erased keyframes' anchors and the correction log are not part of it.
+  MapContents contents() const;
 
   // ---- Map updates (see "Thread safety" above) --------------------------------------------------
 

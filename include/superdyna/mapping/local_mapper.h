@@ -130,6 +130,8 @@ class LocalMapper {
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return initializations_ > 0; }
   const LocalMapperOptions& options() const { return options_; }
+  /// Right-camera observations of the keyframes registered since the last reset (saved maps).
+  const std::map<map::KeyFrameId, RightObservations>& rightObservations() const { return right_; }
 
  private:
   std::vector<map::KeyFrameId> localWindow(const map::Map& map, map::KeyFrameId newest) const;

@@ -61,6 +61,23 @@ struct RigOptions {
   void validate() const;
 };
 
+/// The static world of a sequence, as the world_source section of its simulation.yaml records
+/// it: what rebuilds that world exactly (simulate --world-of). A sequence made with --world-of
+/// records the source it reused, so chains keep the first sequence's world.
+struct WorldSource {
+  std::filesystem::path sequence;  ///< The sequence whose world it is (for messages).
+  MotionSourceOptions motion;      ///< That sequence's motion (trajectory as an absolute path).
+  double knot_spacing_s = 0.1;
+  SceneType scene = SceneType::kStreet;
+  std::uint64_t seed = 1;
+  std::optional<std::filesystem::path> texture_dir;  ///< Absolute.
+  std::uint64_t fingerprint = 0;                     ///< staticWorldFingerprint of that world.
+};
+
+/// Reads SEQ/simulation.yaml's world_source section; InputError naming the file and the key
+/// (a sequence written before world_source existed has none: regenerate it).
+WorldSource readWorldSource(const std::filesystem::path& sequence);
+
 struct SimulationOptions {
   std::filesystem::path output_dir;
   bool overwrite = false;  ///< Allow writing into a non-empty output folder.
@@ -83,6 +100,11 @@ struct SimulationOptions {
   SensorFaultOptions faults;    ///< Damage written into the sequence (default: none).
   double knot_spacing_s = 0.1;  ///< Spline knot spacing fitted to the motion [s].
   std::uint64_t seed = 1;       ///< Seeds the world, agents, IMU noise and image noise.
+  /// Reuse the static world of another sequence (its ground, buildings or room, clutter, and so
+  /// its world frame); the agents, noise and motion are this sequence's (seed, motion). The
+  /// scene and textures are the source's. Its static world must rebuild to the recorded
+  /// fingerprint and this camera path must stay inside it.
+  std::optional<WorldSource> world_of;
   /// Optional PNG showing one cam0 frame beside its colour-coded instance mask.
   std::optional<std::filesystem::path> preview_path;
   int preview_frame = 0;  ///< Index of the frame the preview shows (clamped to the last).

@@ -95,4 +95,15 @@ struct World {
 /// Deterministic for given options and camera path.
 World buildWorld(const WorldOptions& options, const CameraPath& camera_path);
 
+/// A second world in the static scene of another (simulate --world-of): the static world (ground,
+/// room or buildings, clutter) is the one buildWorld(static_options, static_path) builds; the
+/// agents are drawn around `camera_path` from options.seed (options.scene must equal
+/// static_options.scene). OptionError when camera_path leaves that world or runs into a block.
+World buildWorldIn(const WorldOptions& static_options, const CameraPath& static_path,
+                   const WorldOptions& options, const CameraPath& camera_path);
+
+/// A hash of the static world (instance 0's quads, the pixels of their textures, the ground
+/// height): equal for equal static worlds.
+std::uint64_t staticWorldFingerprint(const World& world);
+
 }  // namespace superdyna::sim

@@ -28,6 +28,7 @@
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/loop/loop_closer.h"
+#include "superdyna/map/map_file.h"
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/semantics/segmenter.h"
 #include "superdyna/system/loop_stage.h"
@@ -184,6 +185,20 @@ class System {
   /// Loop closing over the run so far (all zero when off); call after finish() for the final one.
   LoopSummary loopSummary() const;
 
+  /// What a map file must have been made with to be loaded here: feature type, sensor mode, the
+  /// rig's calibrations (the descriptor type is left kNone: the feature type implies it).
+  const map::MapIdentity& mapIdentity() const { return identity_; }
+  /// The current map as a map file (map/map_file.h): keyframes, points, the mapper's right-camera
+  /// observations and the inertial state; nullopt when there is no map. Call after finish().
+  std::optional<map::MapFile> mapFile() const;
+  /// Localization-only: every following frame is tracked against the file's map without changing
+  /// it (tracking::Tracker::localizeIn; loop closing and mapping stay idle). InputError naming
+  /// `name` and the difference when the map was made with other features, mode or rig.
+  void localizeIn(const map::MapFile& file, const std::filesystem::path& name);
+  /// Localization-only: frames that could not be located in the loaded map (no pose estimate;
+  /// not in the trajectory).
+  std::size_t localizingFrames() const { return localizing_frames_; }
+
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);
   /// The front end's frame of a bundle, its keypoints labelled with the segmenter's masks when
@@ -228,6 +243,10 @@ class System {
   std::size_t lost_frames_ = 0;
   std::size_t reference_frames_ = 0;
   std::size_t initializing_frames_ = 0;
+  std::size_t localizing_frames_ = 0;
+  map::MapIdentity identity_;
+  /// Localization-only: the loaded map's right-camera observations (saved with it again).
+  std::map<map::KeyFrameId, map::RightKeypoints> loaded_right_;
   std::size_t map_start_ = 0;  ///< First frames_ entry estimated on the current map.
 };
 

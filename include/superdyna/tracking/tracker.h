@@ -138,7 +138,16 @@ struct TrackerOptions {
 /// kInitializing: a monocular map is being initialised; the frame has no pose estimate.
 /// kRecentlyLost: tracking failed on a map whose IMU is initialised; the pose is the IMU
 /// prediction and the map is kept (ORB-SLAM3's RECENTLY_LOST), see TrackerOptions::imu_bridge_s.
-enum class TrackingState { kTracking, kInitialized, kLost, kInitializing, kRecentlyLost };
+/// kLocalizing: a loaded map (Tracker::localizeIn) in which the frame could not be located yet;
+/// the frame has no pose estimate.
+enum class TrackingState {
+  kTracking,
+  kInitialized,
+  kLost,
+  kInitializing,
+  kRecentlyLost,
+  kLocalizing
+};
 const char* toString(TrackingState state);
 
 struct StageTimes {
@@ -237,10 +246,25 @@ class Tracker {
   bool hasMap() const { return map_ != nullptr; }
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return inertial_inits_ > 0; }
+  /// Inertial (re-)initialisations applied to the current map.
+  int inertialStages() const { return inertial_inits_; }
   int resets() const { return resets_; }
   bool isMonocular() const { return cameras_.size() == 1; }
   /// The left camera's pose in the body frame.
   const SE3d& T_b_c0() const { return T_b_c0_; }
+
+  /// Localization-only: from the next frame on, tracks against `map` (a loaded map file) without
+  /// changing it: no keyframes, points, local BA or loop closing. Until a frame is located in it
+  /// (locateInLoadedMap()), and again after a tracking failure, frames are kLocalizing; the
+  /// reference keyframe follows the keyframe sharing most of the tracked points.
+  /// inertial_stages: the map's inertial (re-)initialisations (0 = not gravity-aligned); the
+  /// biases start from its newest keyframe's. With an IMU the prediction is the preintegration
+  /// from the last frame (the map's keyframe states belong to another recording).
+  void localizeIn(std::unique_ptr<map::Map> map, int inertial_stages);
+  bool localizationOnly() const { return localization_only_; }
+  /// The local mapper (its right-camera observations go into a saved map; read after the mapping
+  /// jobs have run).
+  const mapping::LocalMapper& mapper() const { return mapper_; }
 
   /// Hands the local-mapping jobs to `sink` (not owned, must outlive its use; nullptr = run them at
   /// once). With a sink, track() does not wait for local BA, so the pose of a new keyframe's frame
@@ -313,7 +337,15 @@ class Tracker {
   /// The local-map search from the reference keyframe's PnP pose; nullopt (result untouched) when
   /// no pose is found or it has too few inliers.
   std::optional<LocalMapTrack> trackFromReference(const Frame& frame, TrackingResult& result);
-  ReferenceView referenceView() const;
+  ReferenceView referenceView() const { return referenceView(reference_); }
+  ReferenceView referenceView(map::KeyFrameId id) const;
+  /// Localization-only, frame not located yet: the best PnP pose over the loaded map's keyframes
+  /// (reference_matching.h against each keyframe's points, most inliers), then the local-map
+  /// search from it (tracker_localization.cc). Sets result.state kTracking when located, else
+  /// kLocalizing.
+  std::vector<map::MapPointId> locateInLoadedMap(const Frame& frame, TrackingResult& result);
+  /// Localization-only: the keyframe observing most of the tracked points becomes the reference.
+  void followTrackedKeyFrame(const std::vector<map::MapPointId>& tracked);
   LocalMapTrack trackLocalMap(const Frame& frame, const Prediction& prediction,
                               TrackingResult& result);
   void addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPointId>& tracked,
@@ -405,7 +437,9 @@ class Tracker {
   dynamic::MovingObjectDetector moving_detector_;
   std::optional<Frame> previous_frame_;  ///< The last frame, all keypoints (dynamic.mode on).
   std::vector<map::MapPointId> previous_tracked_;  ///< Its keypoints' map points, same indexing.
-  int inertial_inits_ = 0;  ///< Inertial (re-)initialisations of the current map.
+  int inertial_inits_ = 0;          ///< Inertial (re-)initialisations of the current map.
+  bool localization_only_ = false;  ///< Tracking a loaded map without changing it.
+  bool located_ = false;            ///< Localization-only: the last frame was tracked on it.
 };
 
 }  // namespace superdyna::tracking
