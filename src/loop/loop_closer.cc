@@ -188,6 +188,7 @@ void LoopCloser::reset() {
   loop_edges_.clear();
   keyframes_since_loop_ = 0;
   had_loop_ = false;
+  indexed_earlier_ = false;
 }
 
 LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bool inertial) {
@@ -196,6 +197,7 @@ LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bo
   const std::optional<map::KeyFrame> query = map.keyFrame(keyframe);
   if (!query || query->descriptors.empty()) return step;
   auto start = Clock::now();
+  if (!indexed_earlier_) indexEarlierKeyFrames(map, keyframe);
   ++keyframes_since_loop_;
   const bool resting = had_loop_ && keyframes_since_loop_ <= options_.keyframes_between_loops;
   std::vector<Candidate> candidates = detect(map, *query);
@@ -233,6 +235,16 @@ LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bo
   keyframes_since_loop_ = 0;
   had_loop_ = true;
   return step;
+}
+
+void LoopCloser::indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId first) {
+  indexed_earlier_ = true;
+  for (const map::KeyFrameId id : map.keyFrameIds()) {
+    if (id >= first) continue;
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      database_.add(id, placeDescriptorRows(kf, options_.database.max_descriptors));
+    });
+  }
 }
 
 std::vector<LoopCloser::Candidate> LoopCloser::detect(const map::Map& map,

@@ -131,6 +131,10 @@ class LoopCloser {
     int consistency = 0;
   };
   std::vector<Candidate> detect(const map::Map& map, const map::KeyFrame& query);
+  /// Indexes the map's keyframes older than `first` (the first keyframe the closer is given):
+  /// an inertial map reaches the closer only once its initialisation stages have run, and the
+  /// places it saw before must be found again too.
+  void indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId first);
   std::vector<Candidate> consistentCandidates(const map::Map& map,
                                               const std::vector<Candidate>& groups);
   /// The verified loop, or nullopt with `rejection` set.
@@ -150,6 +154,7 @@ class LoopCloser {
   std::vector<PoseGraphEdge> loop_edges_;
   int keyframes_since_loop_ = 0;
   bool had_loop_ = false;
+  bool indexed_earlier_ = false;  ///< indexEarlierKeyFrames() ran for the current map.
 };
 
 }  // namespace superdyna::loop
