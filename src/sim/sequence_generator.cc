@@ -602,11 +602,11 @@ std::string optionalText(const std::optional<fs::path>& path, const std::string&
 void writeWorldSource(std::ostream& out, const WorldSource& w) {
   out << fmt::format(
       "# What rebuilds this sequence's static world (superdyna simulate --world-of).\n"
-      "world_source:\n  sequence: {}\n  trajectory: {}\n  trajectory_format: {}\n"
+      "world_source:\n  trajectory: {}\n  trajectory_format: {}\n"
       "  trajectory_times: {}\n  segment: {}\n  motion_convention: {}\n  mount_height_m: {}\n"
       "  start_s: {}\n  duration_s: {}\n  knot_spacing_s: {}\n  scene: {}\n  seed: {}\n"
       "  texture_dir: {}\n  static_world_fingerprint: {}\n",
-      w.sequence.string(), optionalText(w.motion.trajectory_file, "procedural"),
+      optionalText(w.motion.trajectory_file, "procedural"),
       io::toString(w.motion.read.format), optionalText(w.motion.read.kitti_times, "none"),
       w.motion.read.segment ? std::to_string(*w.motion.read.segment) : std::string("none"),
       toString(w.motion.convention), w.motion.mount_height_m, w.motion.start_s, w.motion.duration_s,
@@ -888,7 +888,7 @@ WorldSource readWorldSource(const fs::path& sequence) {
                      "expected a non-negative integer, got '" + value + "'");
   };
   WorldSource source;
-  source.sequence = text("sequence");
+  source.sequence = sequence;
   source.motion.trajectory_file = path("trajectory", "procedural");
   source.motion.read.format = io::parseTrajectoryFormat(text("trajectory_format"));
   source.motion.read.kitti_times = path("trajectory_times", "none");

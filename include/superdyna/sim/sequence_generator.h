@@ -65,7 +65,7 @@ struct RigOptions {
 /// it: what rebuilds that world exactly (simulate --world-of). A sequence made with --world-of
 /// records the source it reused, so chains keep the first sequence's world.
 struct WorldSource {
-  std::filesystem::path sequence;  ///< The sequence whose world it is (for messages).
+  std::filesystem::path sequence;  ///< The folder it was read from (for messages; not written).
   MotionSourceOptions motion;      ///< That sequence's motion (trajectory as an absolute path).
   double knot_spacing_s = 0.1;
   SceneType scene = SceneType::kStreet;
