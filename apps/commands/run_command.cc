@@ -646,13 +646,17 @@ class RunCommand : public Command {
     if (online_) io::writeTrajectory(*online_, slam.onlineTrajectory(), format);
     if (save_map_) saveMap(slam);
     fmt::print(
-        "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}; wrote {} and {} "
-        "({} keyframes)\n",
-        t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(), output_.string(),
-        keyframes_path.string(), keyframes.size());
+        "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}, relocalisations {}; "
+        "wrote {} and {} ({} keyframes)\n",
+        t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(),
+        slam.relocalizations(), output_.string(), keyframes_path.string(), keyframes.size());
     if (imu_gaps > 0) fmt::print("IMU gaps bridged without preintegration: {}\n", imu_gaps);
     fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
                slam.referenceTrackedFrames());
+    if (slam.reanchors() > 0) {
+      fmt::print("keyframes inserted at the IMU-predicted pose after a failure: {}\n",
+                 slam.reanchors());
+    }
     if (load_map_) {
       fmt::print(
           "localization-only: {} frames not located in the loaded map (not in the "

@@ -61,6 +61,10 @@ void TrackerOptions::validate() const {
   mono_init.validate();
   imu_prior.validate();
   if (!(imu_bridge_s >= 0.0)) throw OptionError("tracker.imu_bridge_s", "must be >= 0");
+  if (!(relocalization_s >= 0.0)) throw OptionError("tracker.relocalization_s", "must be >= 0");
+  if (relocalization_candidates < 1) {
+    throw OptionError("tracker.relocalization_candidates", "must be >= 1");
+  }
   if (!(imu_max_gap_s > 0.0)) throw OptionError("tracker.imu_max_gap_s", "must be > 0");
   reference_matching.validate();
   if (!(imu_min_keyframe_interval_s >= 0.0)) {
@@ -244,14 +248,25 @@ TrackingResult Tracker::track(const Frame& input) {
     updateMotion(result.T_w_b, frame.t_ns);
     return result;
   }
-  const std::vector<map::MapPointId> tracked = trackFrame(frame, prediction, result);
+  std::vector<map::MapPointId> tracked = trackFrame(frame, prediction, result);
+  if (result.inliers < options_.min_inliers && !localization_only_ &&
+      withinRelocalizationWindow(frame)) {
+    if (auto located = relocalize(frame, prediction, result)) tracked = std::move(*located);
+  }
   result.times.track_ms = millisecondsSince(start);
   bool wants_keyframe = false;
+  bool reanchor = false;
   if (result.inliers < options_.min_inliers && canBridgeWithImu(frame, prediction)) {
     result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
   } else if (result.inliers < options_.min_inliers && localization_only_) {
     located_ = false;  // the next frames are located in the loaded map again
     result.state = TrackingState::kLost;
+  } else if (result.inliers < options_.min_inliers && withinRelocalizationWindow(frame) &&
+             canReanchorWithImu(frame, prediction)) {
+    result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
+    reanchor = true;
+  } else if (result.inliers < options_.min_inliers && withinRelocalizationWindow(frame)) {
+    result.state = TrackingState::kLost;  // the map is kept: the next frames are relocalised
   } else if (result.inliers < options_.min_inliers) {
     has_map_ = false;  // lost: the next frame starts a new map at its predicted pose
     result.state = TrackingState::kLost;
@@ -264,8 +279,18 @@ TrackingResult Tracker::track(const Frame& input) {
   }
   if (has_map_) noteReference(result);
   reading.unlock();  // a new keyframe is submitted to (and may wait for) the mapping thread
-  if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
+  if (reanchor) {
+    // The IMU carries the map's frame over the failure: a keyframe at the predicted pose with new
+    // stereo points, linked to the last one by the preintegration across the failure.
+    addKeyFrameAndMap(frame, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint),
+                      prediction, result);
+    result.reanchored = true;
+    t_tracked_ns_ = frame.t_ns;
+    ++reanchors_;
+  } else if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
     addKeyFrameAndMap(frame, tracked, prediction, result);
+  }
+  if (result.keyframe) {
     result.reference = reference_;  // the frame itself: its pose is the keyframe's
     result.T_w_reference = result.T_w_b;
   }
@@ -276,7 +301,11 @@ TrackingResult Tracker::track(const Frame& input) {
     const SE3d correction = followMapCorrections(&result.T_w_b);
     result.T_w_reference = correction * result.T_w_reference;
   }
-  updateMotion(result.T_w_b, frame.t_ns);
+  if (result.relocalized) {
+    restartMotionAt(result.T_w_b, frame.t_ns, prediction);
+  } else {
+    updateMotion(result.T_w_b, frame.t_ns);
+  }
   return result;
 }
 
@@ -343,13 +372,14 @@ std::vector<map::MapPointId> Tracker::trackFrame(const Frame& frame, const Predi
 }
 
 std::vector<map::MapPointId> Tracker::countObservations(LocalMapTrack track, bool found) {
-  if (localization_only_) return std::move(track.tracked);  // the loaded map stays as it is
+  // The loaded map stays as it is; a frame that was not tracked (a blackout, a lost frame) says
+  // nothing about whether the points it might have seen are there (ORB-SLAM counts only the
+  // frames it tracks), so culling's found ratio counts neither.
+  if (localization_only_ || !found) return std::move(track.tracked);
   for (const map::MapPointId id : track.visible)
     map_->increaseVisible(id);
-  if (found) {
-    for (const map::MapPointId id : track.tracked)
-      if (id != map::kNoMapPoint) map_->increaseFound(id);
-  }
+  for (const map::MapPointId id : track.tracked)
+    if (id != map::kNoMapPoint) map_->increaseFound(id);
   return std::move(track.tracked);
 }
 
@@ -732,6 +762,11 @@ bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
 bool Tracker::canBridgeWithImu(const Frame& frame, const Prediction& prediction) const {
   return prediction.inertial.has_value() &&
          frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.imu_bridge_s);
+}
+
+bool Tracker::canReanchorWithImu(const Frame& frame, const Prediction& prediction) const {
+  return options_.imu_reanchor && prediction.inertial.has_value() && !isMonocular() &&
+         frame.numStereo() >= std::max(options_.keyframe_min_stereo, options_.min_inliers);
 }
 
 bool Tracker::mappingAcceptsKeyFrame(const Frame& frame, int inliers) {

@@ -1,6 +1,7 @@
-// Localization-only tracking against a loaded map (Tracker::localizeIn): locating a frame in the
-// map without a pose prediction and following the keyframes it sees. Self-contained, so that it
-// can later share its place search with relocalisation.
+// Locating a frame in a map without a usable pose prediction: localization-only tracking of a
+// loaded map (Tracker::localizeIn, following the keyframes it sees) and relocalisation after a
+// tracking failure (Tracker::relocalize). Both take the best PnP pose against candidate keyframes'
+// points (reference_matching.h) and search the local map from it.
 
 #include <algorithm>
 #include <map>
@@ -28,14 +29,12 @@ void Tracker::localizeIn(std::unique_ptr<map::Map> map, int inertial_stages) {
   imu_since_keyframe_.clear();
 }
 
-std::vector<map::MapPointId> Tracker::locateInLoadedMap(const Frame& frame,
-                                                        TrackingResult& result) {
-  result.state = TrackingState::kLocalizing;
-  std::vector<map::MapPointId> none(frame.size(), map::kNoMapPoint);
+std::optional<Tracker::LocalMapTrack> Tracker::locateAmong(
+    const Frame& frame, const std::vector<map::KeyFrameId>& candidates, TrackingResult& result) {
   const double focal_px = 0.5 * (camera0_.fx() + camera0_.fy());
   std::optional<ReferencePose> best;
   map::KeyFrameId best_id = map::kNoKeyFrame;
-  for (const map::KeyFrameId id : map_->keyFrameIds()) {
+  for (const map::KeyFrameId id : candidates) {
     const std::optional<ReferencePose> pose =
         poseFromReference(frame, referenceView(id), T_b_c0_, focal_px, options_.reference_matching);
     if (pose && (!best || pose->inliers > best->inliers)) {
@@ -43,7 +42,7 @@ std::vector<map::MapPointId> Tracker::locateInLoadedMap(const Frame& frame,
       best_id = id;
     }
   }
-  if (!best) return none;
+  if (!best) return std::nullopt;
   const map::KeyFrameId previous_reference = reference_;
   reference_ = best_id;
   TrackingResult attempt = result;
@@ -52,16 +51,65 @@ std::vector<map::MapPointId> Tracker::locateInLoadedMap(const Frame& frame,
   LocalMapTrack track = trackLocalMap(frame, from_pnp, attempt);
   if (attempt.inliers < std::max(options_.min_inliers, options_.reference_matching.min_inliers)) {
     reference_ = previous_reference;
-    return none;
+    return std::nullopt;
   }
+  attempt.from_reference = true;
   result = attempt;
+  return track;
+}
+
+std::vector<map::MapPointId> Tracker::locateInLoadedMap(const Frame& frame,
+                                                        TrackingResult& result) {
+  result.state = TrackingState::kLocalizing;
+  std::optional<LocalMapTrack> track = locateAmong(frame, map_->keyFrameIds(), result);
+  if (!track) return std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint);
   result.state = TrackingState::kTracking;
-  result.from_reference = true;
   located_ = true;
   t_tracked_ns_ = frame.t_ns;
-  followTrackedKeyFrame(track.tracked);
+  followTrackedKeyFrame(track->tracked);
   noteReference(result);
-  return std::move(track.tracked);
+  return std::move(track->tracked);
+}
+
+std::optional<std::vector<map::MapPointId>> Tracker::relocalize(const Frame& frame,
+                                                                const Prediction& prediction,
+                                                                TrackingResult& result) {
+  if (!(options_.relocalization_s > 0.0) ||
+      static_cast<int>(frame.size()) < options_.reference_matching.min_inliers) {
+    return std::nullopt;  // nothing to locate (a black or blank image)
+  }
+  const std::vector<map::KeyFrameId> candidates =
+      keyFramesNear(prediction.T_w_b, options_.relocalization_candidates);
+  std::optional<LocalMapTrack> track = locateAmong(frame, candidates, result);
+  if (!track) return std::nullopt;
+  result.relocalized = true;
+  ++relocalizations_;
+  return countObservations(std::move(*track), true);
+}
+
+std::vector<map::KeyFrameId> Tracker::keyFramesNear(const SE3d& T_w_b, int count) const {
+  std::vector<std::pair<double, map::KeyFrameId>> by_distance;
+  for (const map::KeyFrameId id : map_->keyFrameIds()) {
+    if (const std::optional<SE3d> T_w_kf = map_->keyFramePose(id)) {
+      by_distance.emplace_back((T_w_kf->t - T_w_b.t).squaredNorm(), id);
+    }
+  }
+  const std::size_t kept = std::min(by_distance.size(), static_cast<std::size_t>(count));
+  std::partial_sort(by_distance.begin(), by_distance.begin() + static_cast<std::ptrdiff_t>(kept),
+                    by_distance.end());  // ties: the older keyframe first
+  std::vector<map::KeyFrameId> nearest;
+  for (std::size_t k = 0; k < kept; ++k)
+    nearest.push_back(by_distance[k].second);
+  return nearest;
+}
+
+void Tracker::restartMotionAt(const SE3d& T_w_b, TimeNs t_ns, const Prediction& prediction) {
+  T_w_b_last_ = T_w_b;
+  t_last_ns_ = t_ns;
+  has_last_ = true;
+  has_motion_ = false;  // the next frame is matched to the reference keyframe first
+  has_velocity_ = prediction.inertial.has_value();
+  velocity_w_ = has_velocity_ ? prediction.inertial->v_w : Eigen::Vector3d::Zero();
 }
 
 void Tracker::followTrackedKeyFrame(const std::vector<map::MapPointId>& tracked) {

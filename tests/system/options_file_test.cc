@@ -87,6 +87,9 @@ tracker:
   imu_rotation_prior_sigma_deg: 0.5
   imu_min_keyframe_interval_s: 0.2
   imu_bridge_s: 0.3
+  relocalization_s: 2.5
+  relocalization_candidates: 5
+  imu_reanchor: false
   imu_max_gap_s: 0.2
   viewing_limits: false
   reference_matching: false
@@ -256,7 +259,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 195u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 198u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -242,28 +242,61 @@ TEST(StereoSlam, IsDeterministic) {
   }
 }
 
-TEST(StereoSlam, RecoversFromLostTrackingWithANewMap) {
+struct BlackoutRun {
+  std::size_t lost = 0;
+  std::size_t relocalized = 0;
+  int resets = 0;
+  std::size_t trajectory_size = 0;
+  std::size_t map_points = 0;
+};
+
+/// Stereo-inertial over 60 frames of the street flight with three black frames at 1 s (before the
+/// inertial initialisation: no IMU bridge).
+BlackoutRun runWithBlackFramesBeforeInertialInit(double relocalization_s) {
   io::DatasetSourceOptions source_options;
   source_options.max_frames = 60;
   const auto source = io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
   SystemOptions options;
   options.mode = SensorMode::kStereoInertial;
+  options.tracker.relocalization_s = relocalization_s;
   System slam(options, source->camera0(), *source->camera1(), source->imu());
-  std::size_t lost = 0;
+  BlackoutRun run;
   while (auto frame = source->next()) {
     if (frame->index >= 20 && frame->index < 23) {  // three black frames
       frame->image0.setTo(0);
       frame->image1.setTo(0);
     }
     const tracking::TrackingResult result = slam.process(*frame);
-    if (result.state == tracking::TrackingState::kLost) ++lost;
+    if (result.state == tracking::TrackingState::kLost) ++run.lost;
+    if (result.relocalized) ++run.relocalized;
     EXPECT_TRUE(result.T_w_b.t.allFinite());
   }
-  EXPECT_EQ(slam.trajectory().size(), 60u);
-  EXPECT_GE(lost, 1u);
-  EXPECT_LE(lost, 4u);
-  EXPECT_EQ(slam.resets(), 1);
-  EXPECT_GT(slam.numMapPoints(), 100u);
+  EXPECT_EQ(static_cast<int>(run.relocalized), slam.relocalizations());
+  run.resets = slam.resets();
+  run.trajectory_size = slam.trajectory().size();
+  run.map_points = slam.numMapPoints();
+  return run;
+}
+
+TEST(StereoSlam, KeepsItsMapThroughABlackout) {
+  const BlackoutRun run = runWithBlackFramesBeforeInertialInit(3.0);
+  EXPECT_EQ(run.trajectory_size, 60u);
+  // The black frames only: the map is kept, and the frame after them is tracked in it from the
+  // prediction (0.15 s of constant velocity is close enough: no relocalisation needed).
+  EXPECT_EQ(run.lost, 3u);
+  EXPECT_EQ(run.relocalized, 0u);
+  EXPECT_EQ(run.resets, 0);
+  EXPECT_GT(run.map_points, 100u);
+}
+
+TEST(StereoSlam, StartsANewMapAfterABlackoutWithoutRelocalisation) {
+  const BlackoutRun run = runWithBlackFramesBeforeInertialInit(0.0);
+  EXPECT_EQ(run.trajectory_size, 60u);
+  EXPECT_GE(run.lost, 1u);
+  EXPECT_LE(run.lost, 4u);
+  EXPECT_EQ(run.relocalized, 0u);
+  EXPECT_EQ(run.resets, 1);
+  EXPECT_GT(run.map_points, 100u);
 }
 
 TEST(FrameLog, WritesOneRowPerFrameWithTheTrackerState) {
@@ -312,13 +345,14 @@ struct BridgedRun {
 
 /// Stereo-inertial over the first 4 s of the street flight with three black frames at 3 s (after
 /// the inertial initialisation).
-BridgedRun runWithBlackFramesAfterInertialInit(double imu_bridge_s) {
+BridgedRun runWithBlackFramesAfterInertialInit(double imu_bridge_s, double relocalization_s) {
   io::DatasetSourceOptions source_options;
   source_options.max_frames = 80;
   const auto source = io::openDataset(io::DatasetKind::kEuroc, syntheticSequence(), source_options);
   SystemOptions options;
   options.mode = SensorMode::kStereoInertial;
   options.tracker.imu_bridge_s = imu_bridge_s;
+  options.tracker.relocalization_s = relocalization_s;
   System slam(options, source->camera0(), *source->camera1(), source->imu());
   BridgedRun run;
   while (auto frame = source->next()) {
@@ -338,15 +372,16 @@ BridgedRun runWithBlackFramesAfterInertialInit(double imu_bridge_s) {
 }
 
 TEST(StereoInertialSlam, BridgesAShortTrackingFailureWithTheImu) {
-  const BridgedRun bridged = runWithBlackFramesAfterInertialInit(3.0);
+  const BridgedRun bridged = runWithBlackFramesAfterInertialInit(3.0, 0.0);
   ASSERT_TRUE(bridged.initialized_before_gap);
   EXPECT_EQ(bridged.recently_lost, 3u);  // the IMU prediction, then tracking on the same map
   EXPECT_EQ(bridged.lost, 0u);
   EXPECT_EQ(bridged.resets, 0);
   const double path = pathLength(bridged.summary.ground_truth);
   EXPECT_LT(ateOf(bridged.summary).ate_trans.rmse, kSyntheticAteBoundFraction * path);
-  // A bridge shorter than the gap (0.1 s: two of the three black frames) ends in a new map.
-  const BridgedRun short_bridge = runWithBlackFramesAfterInertialInit(0.1);
+  // A bridge shorter than the gap (0.1 s: two of the three black frames) ends in a new map
+  // without relocalisation.
+  const BridgedRun short_bridge = runWithBlackFramesAfterInertialInit(0.1, 0.0);
   EXPECT_EQ(short_bridge.recently_lost, 2u);
   EXPECT_GE(short_bridge.lost, 1u);
   EXPECT_EQ(short_bridge.resets, 1);
@@ -572,7 +607,9 @@ TEST(ConcurrentSlam, TracksSyntheticStreetWithinBound) {
 
 TEST(ConcurrentSlam, RecoversFromLostTrackingWithANewMap) {
   const auto source = openSynthetic(60, shortSequence());
-  System slam(concurrentOptions(), source->camera0(), *source->camera1(), source->imu());
+  SystemOptions options = concurrentOptions();
+  options.tracker.relocalization_s = 0.0;  // relocalisation would keep the map
+  System slam(options, source->camera0(), *source->camera1(), source->imu());
   std::size_t lost = 0;
   while (auto frame = source->next()) {
     if (frame->index >= 20 && frame->index < 23) {  // three black frames

@@ -174,6 +174,10 @@ class System {
   /// Monocular: frames spent initialising a map (no pose estimate; not in the trajectory).
   std::size_t initializingFrames() const { return initializing_frames_; }
   int resets() const { return tracker_.resets(); }
+  /// Frames located again in their map after a tracking failure (tracker.relocalization_s).
+  int relocalizations() const { return tracker_.relocalizations(); }
+  /// Frames that became keyframes at the IMU-predicted pose (tracker.imu_reanchor).
+  int reanchors() const { return tracker_.reanchors(); }
   std::size_t numKeyFrames() const;
   std::size_t numMapPoints() const;
   /// Points of the current map observed by keypoints of different classes (map::Map).

@@ -7,7 +7,8 @@
 // pose prior too - see inertial_prediction.h), projection of the
 // local map (points of the reference keyframe and its best covisible keyframes), matching by
 // projection, motion-only BA, keyframe decision, new stereo map points and local BA. Fewer inliers
-// than `min_inliers` mark the frame lost; the next frame starts a new map at the predicted pose.
+// than `min_inliers` mark the frame lost: the map is kept and the next frames are relocalised in it
+// for relocalization_s, then a frame starts a new map at its predicted pose.
 //
 // Monocular rigs (no cam1) start each map by two-view initialisation (mono_initializer.h) and get
 // new points only from the local mapper's triangulation. With an IMU (mono-inertial) the local
@@ -107,6 +108,20 @@ struct TrackerOptions {
   /// projection search radius: 3 s turned one reset on a dim, blurred XFeat run into 61 lost frames
   /// and twice the ATE, so the default covers short dropouts (a few blurred frames) only.
   double imu_bridge_s = 0.5;
+  /// A tracking failure (beyond the IMU bridge) keeps the map for up to this long after the last
+  /// tracked frame [s], >= 0, and each frame is relocalised in it (relocalize()): only when none
+  /// is located in time does a new map start. ORB-SLAM3 keeps trying for 3 s (5 s with an IMU);
+  /// 0 = a new map at the first failure.
+  double relocalization_s = 3.0;
+  /// Keyframes a lost frame is located against: those nearest to its predicted position (the
+  /// IMU's, else the constant-velocity model's), >= 1.
+  int relocalization_candidates = 8;
+  /// Stereo-inertial: a frame beyond the IMU bridge that is neither tracked nor relocalised but
+  /// has stereo points (keyframe_min_stereo) becomes a keyframe at the IMU-predicted pose, with new
+  /// stereo points, in the same map (within relocalization_s of the last tracked frame): the
+  /// preintegration across the failure links it to the keyframes before, as a visual-inertial
+  /// odometer carries its state through a blackout. Off: such frames wait for relocalisation.
+  bool imu_reanchor = true;
   /// Consecutive IMU samples farther apart than this [s], > 0, are a gap (a dropped stretch of the
   /// stream): frames whose interval touches it are predicted without the IMU (the gyroscope-free
   /// constant-velocity model), the IMU run restarts after the gap, and the keyframe interval that
@@ -168,6 +183,11 @@ struct TrackingResult {
   /// Tracked from the reference keyframe's PnP pose instead of the prediction
   /// (reference_matching.h).
   bool from_reference = false;
+  /// Located again in its map after a tracking failure (TrackerOptions::relocalization_s).
+  bool relocalized = false;
+  /// Neither tracked nor relocalised: became a keyframe of its map at the IMU-predicted pose
+  /// (TrackerOptions::imu_reanchor; state kRecentlyLost).
+  bool reanchored = false;
   bool keyframe = false;
   /// The keyframe the pose was estimated against (the frame's own when it became one) and its
   /// pose at that moment, kNoKeyFrame when the frame was not tracked on a map: the frame's pose
@@ -249,6 +269,10 @@ class Tracker {
   /// Inertial (re-)initialisations applied to the current map.
   int inertialStages() const { return inertial_inits_; }
   int resets() const { return resets_; }
+  /// Frames located again in their map after a tracking failure.
+  int relocalizations() const { return relocalizations_; }
+  /// Frames that became keyframes at the IMU-predicted pose (TrackerOptions::imu_reanchor).
+  int reanchors() const { return reanchors_; }
   bool isMonocular() const { return cameras_.size() == 1; }
   /// The left camera's pose in the body frame.
   const SE3d& T_b_c0() const { return T_b_c0_; }
@@ -344,6 +368,26 @@ class Tracker {
   /// search from it (tracker_localization.cc). Sets result.state kTracking when located, else
   /// kLocalizing.
   std::vector<map::MapPointId> locateInLoadedMap(const Frame& frame, TrackingResult& result);
+  /// The best PnP pose of the frame against the candidates' points (most inliers), then the
+  /// local-map search from it with that keyframe as the reference; nullopt (result and reference
+  /// untouched) when no candidate gives a pose with reference_matching.min_inliers inliers.
+  std::optional<LocalMapTrack> locateAmong(const Frame& frame,
+                                           const std::vector<map::KeyFrameId>& candidates,
+                                           TrackingResult& result);
+  /// After a failed search within relocalization_s of the last tracked frame: the frame located
+  /// among the keyframes nearest to the prediction (relocalization_candidates); on success
+  /// result is the located frame's (kTracking, relocalized) and the tracked points are returned.
+  std::optional<std::vector<map::MapPointId>> relocalize(const Frame& frame,
+                                                         const Prediction& prediction,
+                                                         TrackingResult& result);
+  /// The keyframes nearest to T_w_b's position, nearest first, at most `count`.
+  std::vector<map::KeyFrameId> keyFramesNear(const SE3d& T_w_b, int count) const;
+  bool withinRelocalizationWindow(const Frame& frame) const {
+    return frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.relocalization_s);
+  }
+  /// After a relocalisation: the motion model restarts at the located pose (the poses before it
+  /// were predictions); with the IMU prediction's velocity when there is one.
+  void restartMotionAt(const SE3d& T_w_b, TimeNs t_ns, const Prediction& prediction);
   /// Localization-only: the keyframe observing most of the tracked points becomes the reference.
   void followTrackedKeyFrame(const std::vector<map::MapPointId>& tracked);
   LocalMapTrack trackLocalMap(const Frame& frame, const Prediction& prediction,
@@ -379,6 +423,9 @@ class Tracker {
   bool needKeyFrame(const Frame& frame, int inliers) const;
   /// Whether a tracking failure at `frame` may be bridged by the IMU prediction (kRecentlyLost).
   bool canBridgeWithImu(const Frame& frame, const Prediction& prediction) const;
+  /// Whether a frame that could not be tracked may become a keyframe at its IMU-predicted pose
+  /// (TrackerOptions::imu_reanchor).
+  bool canReanchorWithImu(const Frame& frame, const Prediction& prediction) const;
   bool weakTracking(int inliers) const { return inliers < options_.keyframe_weak_inliers; }
   /// Monocular with a mapping thread: whether a wanted keyframe may be inserted now (waits for a
   /// busy mapper first; see mono_wait_for_mapping for when it is refused instead).
@@ -432,6 +479,8 @@ class Tracker {
   TimeNs t_reference_ns_ = 0;
   TimeNs t_tracked_ns_ = 0;  ///< The last frame tracked against the map.
   int resets_ = 0;
+  int relocalizations_ = 0;
+  int reanchors_ = 0;
 
   std::optional<MonoInitializer> mono_initializer_;  ///< Monocular rigs only.
   dynamic::MovingObjectDetector moving_detector_;
