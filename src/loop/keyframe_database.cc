@@ -28,6 +28,22 @@ void KeyFrameDatabaseOptions::validate() const {
   }
 }
 
+namespace {
+
+/// The first max_rows of the descriptor rows `selected`, in that order.
+cv::Mat selectedRows(const cv::Mat& descriptors, std::vector<int> selected, int max_rows) {
+  if (static_cast<int>(selected.size()) > max_rows) {
+    selected.resize(static_cast<std::size_t>(max_rows));
+  }
+  cv::Mat rows(static_cast<int>(selected.size()), descriptors.cols, descriptors.type());
+  for (std::size_t k = 0; k < selected.size(); ++k) {
+    descriptors.row(selected[k]).copyTo(rows.row(static_cast<int>(k)));
+  }
+  return rows;
+}
+
+}  // namespace
+
 cv::Mat placeDescriptorRows(const map::KeyFrame& keyframe, int max_rows) {
   if (keyframe.descriptors.empty()) return {};
   std::vector<int> with_point;
@@ -39,14 +55,18 @@ cv::Mat placeDescriptorRows(const map::KeyFrame& keyframe, int max_rows) {
     (observed ? with_point : without_point).push_back(static_cast<int>(i));
   }
   with_point.insert(with_point.end(), without_point.begin(), without_point.end());
-  if (static_cast<int>(with_point.size()) > max_rows)
-    with_point.resize(static_cast<std::size_t>(max_rows));
-  cv::Mat rows(static_cast<int>(with_point.size()), keyframe.descriptors.cols,
-               keyframe.descriptors.type());
-  for (std::size_t k = 0; k < with_point.size(); ++k) {
-    keyframe.descriptors.row(with_point[k]).copyTo(rows.row(static_cast<int>(k)));
+  return selectedRows(keyframe.descriptors, std::move(with_point), max_rows);
+}
+
+cv::Mat placeDescriptorRows(const features::FeatureSet& features, int max_rows) {
+  if (features.descriptors.empty()) return {};
+  std::vector<int> background;
+  for (std::size_t i = 0; i < features.keypoints.size(); ++i) {
+    if (features.keypoints[i].class_id == features::kClassBackground) {
+      background.push_back(static_cast<int>(i));
+    }
   }
-  return rows;
+  return selectedRows(features.descriptors, std::move(background), max_rows);
 }
 
 /// One faiss index, binary or float, created by the first keyframe.

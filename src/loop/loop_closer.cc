@@ -183,7 +183,10 @@ LoopCloser::LoopCloser(const LoopClosingOptions& options, const CameraModel& cam
 }
 
 void LoopCloser::reset() {
-  database_.clear();
+  {
+    const std::lock_guard lock(database_mutex_);
+    database_.clear();
+  }
   groups_.clear();
   loop_edges_.clear();
   keyframes_since_loop_ = 0;
@@ -241,17 +244,36 @@ void LoopCloser::indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId firs
   indexed_earlier_ = true;
   for (const map::KeyFrameId id : map.keyFrameIds()) {
     if (id >= first) continue;
+    cv::Mat rows;
     map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
-      database_.add(id, placeDescriptorRows(kf, options_.database.max_descriptors));
+      rows = placeDescriptorRows(kf, options_.database.max_descriptors);
     });
+    const std::lock_guard lock(database_mutex_);
+    database_.add(id, rows);
   }
+}
+
+std::vector<PlaceScore> LoopCloser::recognize(const cv::Mat& rows, int count) const {
+  if (!options_.enabled || rows.empty()) return {};
+  std::vector<PlaceScore> scores;
+  {
+    const std::lock_guard lock(database_mutex_);
+    if (database_.numKeyFrames() == 0) return {};
+    scores = database_.query(rows);
+  }
+  if (static_cast<int>(scores.size()) > count) scores.resize(static_cast<std::size_t>(count));
+  return scores;
 }
 
 std::vector<LoopCloser::Candidate> LoopCloser::detect(const map::Map& map,
                                                       const map::KeyFrame& query) {
   const cv::Mat rows = placeDescriptorRows(query, options_.database.max_descriptors);
-  std::vector<PlaceScore> scores = database_.query(rows);
-  database_.add(query.id, rows);
+  std::vector<PlaceScore> scores;
+  {
+    const std::lock_guard lock(database_mutex_);
+    scores = database_.query(rows);
+    database_.add(query.id, rows);
+  }
   std::map<map::KeyFrameId, double> score_of;
   for (const PlaceScore& s : scores)
     score_of[s.id] = s.score;

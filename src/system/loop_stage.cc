@@ -22,6 +22,16 @@ void LoopStage::mapReset() {
   closer_.reset();
 }
 
+std::vector<map::KeyFrameId> LoopStage::recognizePlace(const tracking::Frame& frame,
+                                                       int count) const {
+  const cv::Mat rows =
+      loop::placeDescriptorRows(frame.features, closer_.options().database.max_descriptors);
+  std::vector<map::KeyFrameId> ids;
+  for (const loop::PlaceScore& score : closer_.recognize(rows, count))
+    ids.push_back(score.id);
+  return ids;
+}
+
 LoopSummary LoopStage::summary() const {
   const std::lock_guard lock(mutex_);
   return summary_;

@@ -249,9 +249,12 @@ TrackingResult Tracker::track(const Frame& input) {
     return result;
   }
   std::vector<map::MapPointId> tracked = trackFrame(frame, prediction, result);
-  if (result.inliers < options_.min_inliers && !localization_only_ &&
-      withinRelocalizationWindow(frame)) {
-    if (auto located = relocalize(frame, prediction, result)) tracked = std::move(*located);
+  if (result.inliers < options_.min_inliers && !localization_only_) {
+    if (!failing_) t_failed_ns_ = frame.t_ns;
+    failing_ = true;
+    if (withinRelocalizationWindow(frame)) {
+      if (auto located = relocalize(frame, prediction, result)) tracked = std::move(*located);
+    }
   }
   result.times.track_ms = millisecondsSince(start);
   bool wants_keyframe = false;
@@ -261,8 +264,7 @@ TrackingResult Tracker::track(const Frame& input) {
   } else if (result.inliers < options_.min_inliers && localization_only_) {
     located_ = false;  // the next frames are located in the loaded map again
     result.state = TrackingState::kLost;
-  } else if (result.inliers < options_.min_inliers && withinRelocalizationWindow(frame) &&
-             canReanchorWithImu(frame, prediction)) {
+  } else if (result.inliers < options_.min_inliers && canReanchorWithImu(frame, prediction)) {
     result.state = TrackingState::kRecentlyLost;  // result.T_w_b: the IMU prediction
     reanchor = true;
   } else if (result.inliers < options_.min_inliers && withinRelocalizationWindow(frame)) {
@@ -274,6 +276,7 @@ TrackingResult Tracker::track(const Frame& input) {
   } else {
     result.state = TrackingState::kTracking;
     t_tracked_ns_ = frame.t_ns;
+    failing_ = false;
     wants_keyframe = !localization_only_ && needKeyFrame(frame, result.inliers);
     if (localization_only_) followTrackedKeyFrame(tracked);
   }
@@ -286,6 +289,7 @@ TrackingResult Tracker::track(const Frame& input) {
                       prediction, result);
     result.reanchored = true;
     t_tracked_ns_ = frame.t_ns;
+    failing_ = false;
     ++reanchors_;
   } else if (wants_keyframe && mappingAcceptsKeyFrame(frame, result.inliers)) {
     addKeyFrameAndMap(frame, tracked, prediction, result);
@@ -631,6 +635,7 @@ void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
   });
   corrections_followed_ = 0;
   inertial_inits_ = 0;
+  failing_ = false;
   bias_ = {};
   SE3d pose = T_w_b;
   insertKeyFrame(frame, pose, std::vector<map::MapPointId>(frame.size(), map::kNoMapPoint));
@@ -766,6 +771,7 @@ bool Tracker::canBridgeWithImu(const Frame& frame, const Prediction& prediction)
 
 bool Tracker::canReanchorWithImu(const Frame& frame, const Prediction& prediction) const {
   return options_.imu_reanchor && prediction.inertial.has_value() && !isMonocular() &&
+         frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.relocalization_s) &&
          frame.numStereo() >= std::max(options_.keyframe_min_stereo, options_.min_inliers);
 }
 

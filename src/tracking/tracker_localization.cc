@@ -78,8 +78,14 @@ std::optional<std::vector<map::MapPointId>> Tracker::relocalize(const Frame& fra
       static_cast<int>(frame.size()) < options_.reference_matching.min_inliers) {
     return std::nullopt;  // nothing to locate (a black or blank image)
   }
-  const std::vector<map::KeyFrameId> candidates =
-      keyFramesNear(prediction.T_w_b, options_.relocalization_candidates);
+  std::vector<map::KeyFrameId> candidates;
+  if (observer_) candidates = observer_->recognizePlace(frame, options_.relocalization_candidates);
+  for (const map::KeyFrameId id :
+       keyFramesNear(prediction.T_w_b, options_.relocalization_candidates)) {
+    if (std::find(candidates.begin(), candidates.end(), id) == candidates.end()) {
+      candidates.push_back(id);
+    }
+  }
   std::optional<LocalMapTrack> track = locateAmong(frame, candidates, result);
   if (!track) return std::nullopt;
   result.relocalized = true;

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <optional>
 
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
@@ -118,6 +120,69 @@ TEST(LoopClosing, StereoInertialAcceptsNoFalseLoopAndDoesNotHurt) {
   EXPECT_LE(on.ate_m, off.ate_m * 1.0001);
   std::cout << "stereo-inertial: ATE " << off.ate_m << " m without loop closing, " << on.ate_m
             << " m with " << on.loops.loops.size() << " loops\n";
+}
+
+struct KidnapRun {
+  int relocalizations = 0;
+  int resets = 0;
+  std::size_t lost_after_jump = 0;
+  std::size_t tracked_after_jump = 0;
+  double max_error_after_jump_m = 0.0;  ///< Tracked frames, against the truth at the same times.
+};
+
+/// Stereo over the circle with the frames from 4.0 to 8.3 s left out: at 8.3 s the rig is back
+/// where it was at 0.6 s, half a circle from where the constant-velocity model expects it and
+/// looking the other way, so neither the prediction nor the reference keyframe can place it.
+KidnapRun runKidnapped(bool loop_closing) {
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, circleSequence(), {});
+  SystemOptions options;
+  options.mode = SensorMode::kStereo;
+  options.deterministic = true;
+  options.loop.enabled = loop_closing;
+  options.loop.min_time_gap_s = 4.0;
+  System slam(options, source->camera0(), source->camera1(), source->imu());
+  const Trajectory truth = source->groundTruth();
+  std::optional<TimeNs> t_first;
+  KidnapRun run;
+  SE3d T_truth_est;  // the map's frame in the truth's, from the first frame
+  while (auto frame = source->next()) {
+    if (!t_first) t_first = frame->t_ns;
+    const double t_s = nsToSeconds(frame->t_ns - *t_first);
+    if (t_s >= 4.0 && t_s < 8.3) continue;
+    const tracking::TrackingResult result = slam.process(*frame);
+    if (frame->t_ns == *t_first) T_truth_est = truthAt(truth, frame->t_ns) * result.T_w_b.inverse();
+    if (t_s < 8.3) continue;
+    if (result.state != tracking::TrackingState::kTracking) {
+      ++run.lost_after_jump;
+      continue;
+    }
+    ++run.tracked_after_jump;
+    const double error = ((T_truth_est * result.T_w_b).t - truthAt(truth, frame->t_ns).t).norm();
+    run.max_error_after_jump_m = std::max(run.max_error_after_jump_m, error);
+  }
+  run.relocalizations = slam.relocalizations();
+  run.resets = slam.resets();
+  std::cout << "kidnapped stereo, loop closing " << (loop_closing ? "on" : "off") << ": "
+            << run.relocalizations << " relocalisations, " << run.resets << " resets, "
+            << run.tracked_after_jump << " frames tracked and " << run.lost_after_jump
+            << " lost after the jump, largest position error " << run.max_error_after_jump_m
+            << " m\n";
+  return run;
+}
+
+TEST(Relocalisation, PlaceRecognitionFindsAKidnappedRigInItsMap) {
+  const KidnapRun with_places = runKidnapped(true);
+  EXPECT_EQ(with_places.relocalizations, 1);
+  EXPECT_EQ(with_places.resets, 0);
+  EXPECT_EQ(with_places.lost_after_jump, 0u);  // the first frame after the jump is located
+  EXPECT_GT(with_places.tracked_after_jump, 30u);
+  EXPECT_LT(with_places.max_error_after_jump_m, 0.05);
+  // Without place recognition the candidates are the keyframes near the prediction, which look
+  // the other way: measured, the frames stay lost until the constant-velocity model has carried
+  // the prediction on along the circle to keyframes that see the place (10 frames).
+  const KidnapRun near_only = runKidnapped(false);
+  EXPECT_GE(near_only.lost_after_jump, 5u);
+  EXPECT_EQ(near_only.resets, 0);
 }
 
 }  // namespace

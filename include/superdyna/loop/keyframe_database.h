@@ -16,6 +16,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "superdyna/features/feature_set.h"
 #include "superdyna/map/keyframe.h"
 
 namespace superdyna::loop {
@@ -48,6 +49,9 @@ struct PlaceScore {
 /// background (class_id 0; features on movable or moving objects never vote nor get votes),
 /// those observing a map point first, at most `max_rows`. Empty without descriptors.
 cv::Mat placeDescriptorRows(const map::KeyFrame& keyframe, int max_rows);
+/// The same for a frame (no map points yet): its background keypoints in order, at most
+/// `max_rows`.
+cv::Mat placeDescriptorRows(const features::FeatureSet& features, int max_rows);
 
 class KeyFrameDatabase {
  public:

@@ -31,6 +31,7 @@
 // verification. Not thread-safe: one thread calls processKeyFrame (the System runs it where local
 // mapping runs).
 
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -120,6 +121,12 @@ class LoopCloser {
   /// Forgets the database and the loops (the map was dropped).
   void reset();
 
+  /// The indexed keyframes whose places score best against `rows` (placeDescriptorRows of a
+  /// frame), best first, at most `count`. Thread-safe against processKeyFrame() and reset(): the
+  /// tracker relocalises with it while loop closing runs in the mapping thread.
+  std::vector<PlaceScore> recognize(const cv::Mat& rows, int count) const;
+
+  /// The database: read it only from the thread that calls processKeyFrame().
   const KeyFrameDatabase& database() const { return database_; }
   const LoopClosingOptions& options() const { return options_; }
 
@@ -150,6 +157,9 @@ class LoopCloser {
   mapping::PointFuser fuser_;
   optim::PoseOptimizer pose_optimizer_;
   KeyFrameDatabase database_;
+  /// Held over each use of database_ (never while waiting for the map): recognize() comes from
+  /// another thread.
+  mutable std::mutex database_mutex_;
   std::vector<Group> groups_;  ///< Consistent groups of the previous keyframe.
   std::vector<PoseGraphEdge> loop_edges_;
   int keyframes_since_loop_ = 0;

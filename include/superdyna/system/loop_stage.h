@@ -37,6 +37,9 @@ class LoopStage final : public tracking::KeyFrameObserver {
 
   bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) override;
   void mapReset() override;
+  /// The loop closer's keyframe database queried with the frame's place descriptors.
+  std::vector<map::KeyFrameId> recognizePlace(const tracking::Frame& frame,
+                                              int count) const override;
   /// A copy (thread-safe).
   LoopSummary summary() const;
 

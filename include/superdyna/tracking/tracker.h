@@ -113,12 +113,14 @@ struct TrackerOptions {
   /// is located in time does a new map start. ORB-SLAM3 keeps trying for 3 s (5 s with an IMU);
   /// 0 = a new map at the first failure.
   double relocalization_s = 3.0;
-  /// Keyframes a lost frame is located against: those nearest to its predicted position (the
-  /// IMU's, else the constant-velocity model's), >= 1.
+  /// Keyframes a lost frame is located against, >= 1: this many proposed by place recognition
+  /// (the loop closer's keyframe database, when loop closing runs), and this many nearest to its
+  /// predicted position (the IMU's, else the constant-velocity model's).
   int relocalization_candidates = 8;
   /// Stereo-inertial: a frame beyond the IMU bridge that is neither tracked nor relocalised but
   /// has stereo points (keyframe_min_stereo) becomes a keyframe at the IMU-predicted pose, with new
-  /// stereo points, in the same map (within relocalization_s of the last tracked frame): the
+  /// stereo points, in the same map (within relocalization_s of the last tracked frame, which
+  /// bounds the IMU's drift): the
   /// preintegration across the failure links it to the keyframes before, as a visual-inertial
   /// odometer carries its state through a blackout. Off: such frames wait for relocalisation.
   bool imu_reanchor = true;
@@ -248,6 +250,15 @@ class KeyFrameObserver {
   virtual bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) = 0;
   /// The tracker drops its map: forget everything about it.
   virtual void mapReset() = 0;
+  /// Place recognition for relocalisation: the keyframes seen so far whose places look most like
+  /// `frame`'s, best first, at most `count` (none by default). Called from the tracking thread
+  /// while the mapping jobs run: must be thread-safe. Ids of a map just dropped may still come
+  /// back until mapReset() has run; they simply fail the geometric check.
+  virtual std::vector<map::KeyFrameId> recognizePlace(const Frame& frame, int count) const {
+    (void)frame;
+    (void)count;
+    return {};
+  }
 };
 
 class Tracker {
@@ -375,15 +386,18 @@ class Tracker {
                                            const std::vector<map::KeyFrameId>& candidates,
                                            TrackingResult& result);
   /// After a failed search within relocalization_s of the last tracked frame: the frame located
-  /// among the keyframes nearest to the prediction (relocalization_candidates); on success
-  /// result is the located frame's (kTracking, relocalized) and the tracked points are returned.
+  /// among the keyframes place recognition proposes (KeyFrameObserver::recognizePlace) and those
+  /// nearest to the prediction (relocalization_candidates of each); on success result is the
+  /// located frame's (kTracking, relocalized) and the tracked points are returned.
   std::optional<std::vector<map::MapPointId>> relocalize(const Frame& frame,
                                                          const Prediction& prediction,
                                                          TrackingResult& result);
   /// The keyframes nearest to T_w_b's position, nearest first, at most `count`.
   std::vector<map::KeyFrameId> keyFramesNear(const SE3d& T_w_b, int count) const;
+  /// Within relocalization_s of the first frame of the current failure (ORB-SLAM3's
+  /// time-since-lost: a stream that resumes after a gap still gets its window).
   bool withinRelocalizationWindow(const Frame& frame) const {
-    return frame.t_ns - t_tracked_ns_ <= secondsToNs(options_.relocalization_s);
+    return frame.t_ns - t_failed_ns_ <= secondsToNs(options_.relocalization_s);
   }
   /// After a relocalisation: the motion model restarts at the located pose (the poses before it
   /// were predictions); with the IMU prediction's velocity when there is one.
@@ -478,6 +492,8 @@ class Tracker {
   map::KeyFrameId reference_ = map::kNoKeyFrame;
   TimeNs t_reference_ns_ = 0;
   TimeNs t_tracked_ns_ = 0;  ///< The last frame tracked against the map.
+  bool failing_ = false;     ///< The last frame on the map was not tracked.
+  TimeNs t_failed_ns_ = 0;   ///< The first frame of the current failure.
   int resets_ = 0;
   int relocalizations_ = 0;
   int reanchors_ = 0;
