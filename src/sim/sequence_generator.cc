@@ -606,8 +606,8 @@ void writeWorldSource(std::ostream& out, const WorldSource& w) {
       "  trajectory_times: {}\n  segment: {}\n  motion_convention: {}\n  mount_height_m: {}\n"
       "  start_s: {}\n  duration_s: {}\n  knot_spacing_s: {}\n  scene: {}\n  seed: {}\n"
       "  texture_dir: {}\n  static_world_fingerprint: {}\n",
-      optionalText(w.motion.trajectory_file, "procedural"),
-      io::toString(w.motion.read.format), optionalText(w.motion.read.kitti_times, "none"),
+      optionalText(w.motion.trajectory_file, "procedural"), io::toString(w.motion.read.format),
+      optionalText(w.motion.read.kitti_times, "none"),
       w.motion.read.segment ? std::to_string(*w.motion.read.segment) : std::string("none"),
       toString(w.motion.convention), w.motion.mount_height_m, w.motion.start_s, w.motion.duration_s,
       w.knot_spacing_s, toString(w.scene), w.seed, optionalText(w.texture_dir, "procedural"),

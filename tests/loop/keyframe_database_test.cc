@@ -109,6 +109,21 @@ TEST(PlaceDescriptorRows, KeepsBackgroundKeypointsObservingPointsFirst) {
   EXPECT_EQ(placeDescriptorRows(keyframe, 100).rows, 4);
 }
 
+TEST(PlaceDescriptorRows, OfAFrameKeepsItsBackgroundKeypointsInOrder) {
+  std::mt19937 rng(3);
+  features::FeatureSet frame;
+  frame.descriptors = randomBinary(5, rng);
+  frame.keypoints.resize(5);
+  frame.keypoints[0].class_id = features::kClassVehicle;  // movable: never queried
+  frame.keypoints[3].class_id = features::kClassOtherMovable;
+  const cv::Mat rows = placeDescriptorRows(frame, 2);
+  ASSERT_EQ(rows.rows, 2);  // keypoints 1 and 2; 4 is over the limit
+  EXPECT_EQ(cv::norm(rows.row(0), frame.descriptors.row(1), cv::NORM_HAMMING), 0.0);
+  EXPECT_EQ(cv::norm(rows.row(1), frame.descriptors.row(2), cv::NORM_HAMMING), 0.0);
+  EXPECT_EQ(placeDescriptorRows(frame, 100).rows, 3);
+  EXPECT_TRUE(placeDescriptorRows(features::FeatureSet{}, 100).empty());
+}
+
 TEST(KeyFrameDatabase, MovableFeaturesOfAKeyFrameDoNotVote) {
   std::mt19937 rng(4);
   KeyFrameDatabase database;

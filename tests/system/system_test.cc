@@ -278,25 +278,22 @@ BlackoutRun runWithBlackFramesBeforeInertialInit(double relocalization_s) {
   return run;
 }
 
-TEST(StereoSlam, KeepsItsMapThroughABlackout) {
-  const BlackoutRun run = runWithBlackFramesBeforeInertialInit(3.0);
-  EXPECT_EQ(run.trajectory_size, 60u);
+TEST(StereoSlam, KeepsItsMapThroughABlackoutUnlessRelocalisationIsOff) {
+  const BlackoutRun kept = runWithBlackFramesBeforeInertialInit(3.0);
+  const BlackoutRun reset = runWithBlackFramesBeforeInertialInit(0.0);
+  for (const BlackoutRun* run : {&kept, &reset}) {
+    EXPECT_EQ(run->trajectory_size, 60u);
+    EXPECT_EQ(run->relocalized, 0u);
+    EXPECT_GT(run->map_points, 100u);
+  }
   // The black frames only: the map is kept, and the frame after them is tracked in it from the
   // prediction (0.15 s of constant velocity is close enough: no relocalisation needed).
-  EXPECT_EQ(run.lost, 3u);
-  EXPECT_EQ(run.relocalized, 0u);
-  EXPECT_EQ(run.resets, 0);
-  EXPECT_GT(run.map_points, 100u);
-}
-
-TEST(StereoSlam, StartsANewMapAfterABlackoutWithoutRelocalisation) {
-  const BlackoutRun run = runWithBlackFramesBeforeInertialInit(0.0);
-  EXPECT_EQ(run.trajectory_size, 60u);
-  EXPECT_GE(run.lost, 1u);
-  EXPECT_LE(run.lost, 4u);
-  EXPECT_EQ(run.relocalized, 0u);
-  EXPECT_EQ(run.resets, 1);
-  EXPECT_GT(run.map_points, 100u);
+  EXPECT_EQ(kept.lost, 3u);
+  EXPECT_EQ(kept.resets, 0);
+  // Without the relocalisation window the first failure starts a new map (the old behaviour).
+  EXPECT_GE(reset.lost, 1u);
+  EXPECT_LE(reset.lost, 4u);
+  EXPECT_EQ(reset.resets, 1);
 }
 
 TEST(FrameLog, WritesOneRowPerFrameWithTheTrackerState) {

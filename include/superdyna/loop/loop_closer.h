@@ -29,7 +29,7 @@
 //
 // Features labelled on movable objects (class_id != 0) neither vote nor take part in the
 // verification. Not thread-safe: one thread calls processKeyFrame (the System runs it where local
-// mapping runs).
+// mapping runs); only recognize() (relocalisation's place recognition) may come from another.
 
 #include <mutex>
 #include <optional>

@@ -108,8 +108,8 @@ struct TrackerOptions {
   /// projection search radius: 3 s turned one reset on a dim, blurred XFeat run into 61 lost frames
   /// and twice the ATE, so the default covers short dropouts (a few blurred frames) only.
   double imu_bridge_s = 0.5;
-  /// A tracking failure (beyond the IMU bridge) keeps the map for up to this long after the last
-  /// tracked frame [s], >= 0, and each frame is relocalised in it (relocalize()): only when none
+  /// A tracking failure (beyond the IMU bridge) keeps the map for up to this long after its first
+  /// failed frame [s], >= 0, and each frame is relocalised in it (relocalize()): only when none
   /// is located in time does a new map start. ORB-SLAM3 keeps trying for 3 s (5 s with an IMU);
   /// 0 = a new map at the first failure.
   double relocalization_s = 3.0;
@@ -118,11 +118,11 @@ struct TrackerOptions {
   /// predicted position (the IMU's, else the constant-velocity model's).
   int relocalization_candidates = 8;
   /// Stereo-inertial: a frame beyond the IMU bridge that is neither tracked nor relocalised but
-  /// has stereo points (keyframe_min_stereo) becomes a keyframe at the IMU-predicted pose, with new
-  /// stereo points, in the same map (within relocalization_s of the last tracked frame, which
-  /// bounds the IMU's drift): the
-  /// preintegration across the failure links it to the keyframes before, as a visual-inertial
-  /// odometer carries its state through a blackout. Off: such frames wait for relocalisation.
+  /// has stereo points (keyframe_min_stereo) becomes a keyframe at the IMU-predicted pose, with
+  /// new stereo points, in the same map (within relocalization_s of the last tracked frame, which
+  /// bounds the IMU's drift): the preintegration across the failure links it to the keyframes
+  /// before, as a visual-inertial odometer carries its state through a blackout. Off: such frames
+  /// wait for relocalisation.
   bool imu_reanchor = true;
   /// Consecutive IMU samples farther apart than this [s], > 0, are a gap (a dropped stretch of the
   /// stream): frames whose interval touches it are predicted without the IMU (the gyroscope-free
@@ -385,7 +385,7 @@ class Tracker {
   std::optional<LocalMapTrack> locateAmong(const Frame& frame,
                                            const std::vector<map::KeyFrameId>& candidates,
                                            TrackingResult& result);
-  /// After a failed search within relocalization_s of the last tracked frame: the frame located
+  /// After a failed search within relocalization_s of the failure's first frame: the frame located
   /// among the keyframes place recognition proposes (KeyFrameObserver::recognizePlace) and those
   /// nearest to the prediction (relocalization_candidates of each); on success result is the
   /// located frame's (kTracking, relocalized) and the tracked points are returned.
