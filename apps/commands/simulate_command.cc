@@ -291,6 +291,14 @@ class SimulateCommand : public Command {
     sub_->add_option("--black-frames", black_frames_,
                      "T0:T1: both cameras' images in this interval are black (several allowed)")
         ->group(group);
+    sub_->add_option("--overexposed-frames", overexposed_frames_,
+                     "T0:T1: both cameras' images in this interval are saturated white (several "
+                     "allowed)")
+        ->group(group);
+    sub_->add_option("--missing-cam1", missing_cam1_,
+                     "T0:T1: cam1 has no rows or images in this interval, cam0 goes on (several "
+                     "allowed)")
+        ->group(group);
     sub_->add_option("--time-offset", options_.faults.imu_time_offset_s,
                      "Camera-IMU time offset [s], |offset| < 1: every IMU timestamp is written "
                      "this much late (ground truth and images keep the true times)")
@@ -305,6 +313,12 @@ class SimulateCommand : public Command {
       options_.faults.imu_nan.push_back(sim::parseFaultInterval(text, "--imu-nan"));
     for (const std::string& text : black_frames_)
       options_.faults.black_frames.push_back(sim::parseFaultInterval(text, "--black-frames"));
+    for (const std::string& text : overexposed_frames_) {
+      options_.faults.overexposed_frames.push_back(
+          sim::parseFaultInterval(text, "--overexposed-frames"));
+    }
+    for (const std::string& text : missing_cam1_)
+      options_.faults.missing_cam1.push_back(sim::parseFaultInterval(text, "--missing-cam1"));
   }
 
   void applyChoices() {
@@ -377,6 +391,8 @@ class SimulateCommand : public Command {
   std::vector<std::string> imu_gaps_;
   std::vector<std::string> imu_nan_;
   std::vector<std::string> black_frames_;
+  std::vector<std::string> overexposed_frames_;
+  std::vector<std::string> missing_cam1_;
 };
 
 }  // namespace

@@ -86,7 +86,8 @@ bool inAnyInterval(const std::vector<FaultInterval>& intervals, double t_s) {
 
 bool SensorFaultOptions::any() const {
   return drop_frame_rate > 0.0 || !drop_frames.empty() || !imu_gaps.empty() || !imu_nan.empty() ||
-         !black_frames.empty() || imu_time_offset_s != 0.0;
+         !black_frames.empty() || !overexposed_frames.empty() || !missing_cam1.empty() ||
+         imu_time_offset_s != 0.0;
 }
 
 void SensorFaultOptions::validate() const {
@@ -102,6 +103,8 @@ void SensorFaultOptions::validate() const {
   validateIntervals(imu_gaps, "--imu-gap");
   validateIntervals(imu_nan, "--imu-nan");
   validateIntervals(black_frames, "--black-frames");
+  validateIntervals(overexposed_frames, "--overexposed-frames");
+  validateIntervals(missing_cam1, "--missing-cam1");
 }
 
 bool SensorFaultOptions::dropsFrame(std::size_t index, std::uint64_t seed) const {

@@ -414,14 +414,14 @@ class SequenceWriter {
       const std::string name = fmt::format("{}.png", t);
       RenderResult left = renderCamera(0, t);
       RenderResult right = renderCamera(1, t);
-      if (inAnyInterval(options_.faults.black_frames, nsToSeconds(t - frame_times_.front()))) {
-        left.image.setTo(0);  // a covered or failed camera: masks and ground truth unchanged
-        right.image.setTo(0);
-      }
+      const double t_s = nsToSeconds(t - frame_times_.front());
+      applyImageFaults(t_s, left, right);
       writeFrame(0, name, left);
-      writeFrame(1, name, right);
       data0 << t << ',' << name << '\n';
-      data1 << t << ',' << name << '\n';
+      if (!inAnyInterval(options_.faults.missing_cam1, t_s)) {
+        writeFrame(1, name, right);
+        data1 << t << ',' << name << '\n';
+      }
       const std::array<double, 2> gains = {illumination_.gain(0, t), illumination_.gain(1, t)};
       stats.add(gains, left, right);
       if (photometric) {
@@ -461,6 +461,18 @@ class SequenceWriter {
 
  private:
   SE3d cameraPose(int cam, TimeNs t) const { return spline_.pose(t) * T_b_c_[cam]; }
+
+  /// Black or overexposed images at t_s (after the first frame); masks and ground truth unchanged.
+  void applyImageFaults(double t_s, RenderResult& left, RenderResult& right) const {
+    if (inAnyInterval(options_.faults.black_frames, t_s)) {
+      left.image.setTo(0);  // a covered or failed camera
+      right.image.setTo(0);
+    }
+    if (inAnyInterval(options_.faults.overexposed_frames, t_s)) {
+      left.image.setTo(255);  // saturated: exposure far too long, or facing the sun
+      right.image.setTo(255);
+    }
+  }
 
   std::size_t previewIndex() const {
     return std::min(static_cast<std::size_t>(std::max(options_.preview_frame, 0)),

@@ -55,10 +55,18 @@ TEST(SensorFaults, ParsesIntervalsRatesAndFrameLists) {
   SensorFaultOptions offset;
   offset.imu_time_offset_s = 1.5;
   EXPECT_THROW(offset.validate(), OptionError);
+  SensorFaultOptions reversed;
+  reversed.missing_cam1 = {{2.0, 1.0}};
+  test::expectError<OptionError>([&] { reversed.validate(); }, {"--missing-cam1"});
+  SensorFaultOptions white;
+  white.overexposed_frames = {{-1.0, 1.0}};
+  test::expectError<OptionError>([&] { white.validate(); }, {"--overexposed-frames"});
+  EXPECT_TRUE(white.any());
 }
 
 /// A 1.5 s indoor flight with frames 3 and 4 dropped, IMU rows missing over [0.5, 0.75) s and nan
-/// over [1.0, 1.1) s, black images over [1.2, 1.3) s, IMU timestamps 12.5 ms late.
+/// over [1.0, 1.1) s, black images over [1.2, 1.3) s, white ones over [0.2, 0.3) s, no cam1
+/// over [0.8, 0.9) s, IMU timestamps 12.5 ms late.
 TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   const test::ScratchDir dir("sensor_faults");
   SimulationOptions options;
@@ -72,6 +80,8 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   options.faults.imu_gaps = {{0.5, 0.75}};
   options.faults.imu_nan = {{1.0, 1.1}};
   options.faults.black_frames = {{1.2, 1.3}};
+  options.faults.overexposed_frames = {{0.2, 0.3}};
+  options.faults.missing_cam1 = {{0.8, 0.9}};
   options.faults.imu_time_offset_s = 0.0125;
   const SimulationSummary summary = generateSequence(options);
   EXPECT_EQ(summary.frames, 29);  // 31 at 20 Hz, two dropped
@@ -82,7 +92,11 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   const std::vector<io::TextRow> cam1 =
       io::readTextRows(mav0 / "cam1/data.csv", io::Delimiter::kComma);
   ASSERT_EQ(cam0.size(), 29u);
-  ASSERT_EQ(cam1.size(), 29u);
+  ASSERT_EQ(cam1.size(), 27u);  // 0.80 and 0.85 s missing
+  for (const io::TextRow& row : cam1) {
+    const double t_s = nsToSeconds(std::stoll(row.fields[0]) - std::stoll(cam0[0].fields[0]));
+    EXPECT_FALSE(t_s >= 0.8 - 1e-9 && t_s < 0.9 - 1e-9) << "cam1 row at " << t_s;
+  }
   const TimeNs t0 = std::stoll(cam0[0].fields[0]);
   EXPECT_EQ(std::stoll(cam0[3].fields[0]) - t0, secondsToNs(0.25));  // frame 5 follows frame 2
   for (const io::TextRow& row : cam0) {
@@ -91,7 +105,9 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
         cv::imread((mav0 / "cam0/data" / row.fields[1]).string(), cv::IMREAD_GRAYSCALE);
     ASSERT_FALSE(image.empty());
     const bool black = t_s >= 1.2 - 1e-9 && t_s < 1.3 - 1e-9;
+    const bool white = t_s >= 0.2 - 1e-9 && t_s < 0.3 - 1e-9;
     EXPECT_EQ(cv::countNonZero(image) == 0, black) << "t = " << t_s;
+    EXPECT_EQ(cv::countNonZero(image != 255) == 0, white) << "t = " << t_s;
   }
   const std::vector<io::TextRow> imu =
       io::readTextRows(mav0 / "imu0/data.csv", io::Delimiter::kComma);
@@ -106,7 +122,9 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
 
   // The reader skips the nan rows and reports them, the dropped frames and the gaps.
   const io::EurocDataset dataset = io::EurocDataset::open(dir.path());
-  EXPECT_EQ(dataset.stereoFrames().size(), 29u);
+  EXPECT_EQ(dataset.stereoFrames().size(), 27u);  // the frames without cam1 are mono only
+  EXPECT_EQ(dataset.monoFrames().size(), 29u);
+  EXPECT_TRUE(anyContains(dataset.warnings(), "2 frame(s) have no cam1 frame"));
   for (const io::ImuSample& sample : dataset.imu())
     ASSERT_TRUE(sample.gyro.allFinite() && sample.accel.allFinite());
   EXPECT_TRUE(anyContains(dataset.warnings(), "with nan or inf values skipped"));

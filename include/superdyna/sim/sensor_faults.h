@@ -7,6 +7,10 @@
 //     passed through by the driver);
 //   * black frames: both cameras' images of an interval are all zero (a covered or failed
 //     camera; masks and ground truth are unchanged);
+//   * overexposed frames: both cameras' images of an interval are saturated white (an exposure
+//     far too long, a camera facing the sun);
+//   * a missing camera: cam1's rows and images of an interval are not written (one camera's
+//     driver dropped out; cam0 goes on);
 //   * a camera-IMU time offset: every IMU timestamp is written `imu_time_offset_s` late (the IMU
 //     clock runs ahead of the cameras' and the ground truth's), which no reader can detect.
 // Intervals are in seconds after the first frame of the sequence, half-open [t0, t1).
@@ -36,7 +40,9 @@ struct SensorFaultOptions {
   std::vector<FaultInterval> imu_gaps;      ///< IMU rows left out.
   std::vector<FaultInterval> imu_nan;       ///< IMU rows written as NaN.
   std::vector<FaultInterval> black_frames;  ///< Images written all black.
-  double imu_time_offset_s = 0.0;           ///< Added to every IMU timestamp [s], |offset| < 1.
+  std::vector<FaultInterval> overexposed_frames;  ///< Images written all white (255).
+  std::vector<FaultInterval> missing_cam1;        ///< cam1 rows and images left out.
+  double imu_time_offset_s = 0.0;  ///< Added to every IMU timestamp [s], |offset| < 1.
 
   bool any() const;
   /// Throws OptionError naming the option of the first invalid value.
