@@ -6,13 +6,17 @@ namespace superdyna::system {
 
 FrameLog::FrameLog(const std::filesystem::path& path, const std::string& option) : out_(path) {
   if (!out_) throw OptionError(option, "cannot open '" + path.string() + "' for writing");
-  out_ << "frame,state,matches,inliers,from_reference,keyframe\n";
+  out_ << "frame,state,matches,inliers,from_reference,keyframe,recovered\n";
 }
 
 void FrameLog::write(std::size_t frame, const tracking::TrackingResult& result) {
   out_ << frame << ',' << tracking::toString(result.state) << ',' << result.matches << ','
        << result.inliers << ',' << (result.from_reference ? 1 : 0) << ','
-       << (result.keyframe ? 1 : 0) << '\n';
+       << (result.keyframe ? 1 : 0) << ','
+       << (result.relocalized  ? "relocalized"
+           : result.reanchored ? "imu-keyframe"
+                               : "")
+       << '\n';
   out_.flush();  // a run that crashes or is stopped still leaves the rows up to its last frame
 }
 

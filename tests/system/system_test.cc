@@ -315,15 +315,17 @@ TEST(FrameLog, WritesOneRowPerFrameWithTheTrackerState) {
   for (std::string line; std::getline(in, line);)
     rows.push_back(line);
   ASSERT_EQ(rows.size(), 31u);
-  EXPECT_EQ(rows[0], "frame,state,matches,inliers,from_reference,keyframe");
-  EXPECT_EQ(rows[1], "0,initialized,0,0,0,1");
+  EXPECT_EQ(rows[0], "frame,state,matches,inliers,from_reference,keyframe,recovered");
+  EXPECT_EQ(rows[1], "0,initialized,0,0,0,1,");
   // The second frame of a map has no motion model: tracked from the reference keyframe.
   EXPECT_EQ(rows[2].substr(0, 11), "1,tracking,");
-  EXPECT_EQ(rows[2].substr(rows[2].size() - 4, 2), ",1");
+  EXPECT_EQ(rows[2].substr(rows[2].size() - 5, 2), ",1");
   std::size_t keyframes = 0;
   for (std::size_t i = 1; i < rows.size(); ++i) {
     EXPECT_EQ(rows[i].substr(0, rows[i].find(',')), std::to_string(i - 1));
-    keyframes += rows[i].back() == '1' ? 1 : 0;
+    ASSERT_GE(rows[i].size(), 3u);
+    EXPECT_EQ(rows[i].back(), ',') << rows[i];  // nothing to recover from
+    keyframes += rows[i][rows[i].size() - 2] == '1' ? 1 : 0;
   }
   EXPECT_EQ(keyframes, slam.timings().keyframes);
   EXPECT_EQ(slam.referenceTrackedFrames(), 1u);

@@ -1,9 +1,12 @@
 #pragma once
 // `superdyna run --frame-log FILE`: one CSV row per frame with the tracker's view of it (state,
-// map matches, pose inliers, whether the pose came from the reference keyframe, keyframe), for
-// finding where and why tracking failed. Header line:
-//   frame,state,matches,inliers,from_reference,keyframe
-// frame is the 0-based index in the served sequence; state is tracking::toString().
+// map matches, pose inliers, whether the pose came from the reference keyframe, keyframe, how the
+// frame came back into its map after a failure), for finding where and why tracking failed.
+// Header line:
+//   frame,state,matches,inliers,from_reference,keyframe,recovered
+// frame is the 0-based index in the served sequence; state is tracking::toString(); recovered is
+// "relocalized" (TrackingResult::relocalized), "imu-keyframe" (TrackingResult::reanchored) or
+// empty.
 
 #include <cstddef>
 #include <filesystem>
