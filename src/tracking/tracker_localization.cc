@@ -74,8 +74,7 @@ std::vector<map::MapPointId> Tracker::locateInLoadedMap(const Frame& frame,
 std::optional<std::vector<map::MapPointId>> Tracker::relocalize(const Frame& frame,
                                                                 const Prediction& prediction,
                                                                 TrackingResult& result) {
-  if (!(options_.relocalization_s > 0.0) ||
-      static_cast<int>(frame.size()) < options_.reference_matching.min_inliers) {
+  if (static_cast<int>(frame.size()) < options_.reference_matching.min_inliers) {
     return std::nullopt;  // nothing to locate (a black or blank image)
   }
   std::vector<map::KeyFrameId> candidates;

@@ -396,8 +396,10 @@ class Tracker {
   std::vector<map::KeyFrameId> keyFramesNear(const SE3d& T_w_b, int count) const;
   /// Within relocalization_s of the first frame of the current failure (ORB-SLAM3's
   /// time-since-lost: a stream that resumes after a gap still gets its window).
+  /// Always false with relocalization_s 0 (a new map at the first failure).
   bool withinRelocalizationWindow(const Frame& frame) const {
-    return frame.t_ns - t_failed_ns_ <= secondsToNs(options_.relocalization_s);
+    return options_.relocalization_s > 0.0 &&
+           frame.t_ns - t_failed_ns_ <= secondsToNs(options_.relocalization_s);
   }
   /// After a relocalisation: the motion model restarts at the located pose (the poses before it
   /// were predictions); with the IMU prediction's velocity when there is one.
