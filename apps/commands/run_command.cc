@@ -52,12 +52,14 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
                t.meanMs(t.total.moving_objects_ms));
   }
   if (options.deterministic) {
-    const double cpu_ms = t.busy.front_end_ms + t.busy.extraction_helper_ms + t.busy.tracking_ms;
+    const double cpu_ms = t.busy.front_end_ms + t.busy.extraction_helper_ms +
+                          t.busy.segmentation_ms + t.busy.tracking_ms;
     fmt::print(
         "pipeline: deterministic (sequential), {:.1f} FPS wall clock over {:.2f} s; CPU time "
-        "{:.1f} s ({:.1f} ms per frame), of which extraction helper {:.1f} s\n",
+        "{:.1f} s ({:.1f} ms per frame), of which extraction helper {:.1f} s, segmentation "
+        "thread {:.1f} s\n",
         t.framesPerSecond(), t.wall_s, cpu_ms / 1e3, t.meanMs(cpu_ms),
-        t.busy.extraction_helper_ms / 1e3);
+        t.busy.extraction_helper_ms / 1e3, t.busy.segmentation_ms / 1e3);
     return;
   }
   const auto busy = [&](double ms) {
@@ -66,9 +68,19 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
   };
   fmt::print(
       "pipeline: concurrent, {:.1f} FPS wall clock over {:.2f} s; thread CPU time (share of the "
-      "wall clock): front end {}, extraction helper {}, tracking {}, local mapping {}\n",
+      "wall clock): front end {}, extraction helper {}, segmentation {}, tracking {}, local "
+      "mapping {}\n",
       t.framesPerSecond(), t.wall_s, busy(t.busy.front_end_ms), busy(t.busy.extraction_helper_ms),
-      busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
+      busy(t.busy.segmentation_ms), busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
+}
+
+void printSegmentation(const system::TimingSummary& t) {
+  const auto mean = [](double total_ms, std::size_t n) { return n > 0 ? total_ms / n : 0.0; };
+  fmt::print(
+      "segmentation: {} frames segmented ({:.2f} ms each, beside the extraction), {} with masks "
+      "propagated ({:.2f} ms each); {:.2f} ms per frame\n",
+      t.segmented_frames, mean(t.segment_ms, t.segmented_frames), t.propagated_frames,
+      mean(t.propagate_ms, t.propagated_frames), t.meanMs(t.segment_ms + t.propagate_ms));
 }
 
 /// Writes every `every`-th frame's overlay into `dir`: the image, the instance masks and the
@@ -386,6 +398,11 @@ class RunCommand : public Command {
                    "Short for --segmenter dataset with semantics.dataset_format masks: label "
                    "keypoints with the sequence's instance masks (simulated sequences: "
                    "mav0/camN/mask/ and instances.csv)");
+    sub_->add_option("--segment-every", segment_every_,
+                     "Segment one frame in N; the frames between get the masks of the frame "
+                     "before them moved with their keypoint matches (overrides "
+                     "semantics.every_n_frames)")
+        ->check(CLI::PositiveNumber);
     sub_->add_option("--overlay", overlay_dir_,
                      "Write overlay PNGs into this folder: left image, instance masks, keypoints "
                      "coloured by class; with the moving-object test on, only the moving "
@@ -538,6 +555,7 @@ class RunCommand : public Command {
       options.front_end.features.model = *model_;
     }
     if (segmenter_) options.semantics.segmenter = *segmenter_;
+    if (segment_every_) options.semantics.every_n_frames = *segment_every_;
     if (instance_masks_) {
       if (segmenter_ && *segmenter_ != "dataset") {
         throw OptionError("--instance-masks",
@@ -668,10 +686,7 @@ class RunCommand : public Command {
                  slam.initializingFrames());
     }
     printTimings(slam.options(), t);
-    if (segmentation != "none") {
-      fmt::print("segmentation per frame (mean ms, in the front end): {:.2f}\n",
-                 t.meanMs(t.segment_ms));
-    }
+    if (segmentation != "none") printSegmentation(t);
     printMatchCounts(slam);
     printLoops(slam, source->groundTruth());
     printAccuracy(source->groundTruth(), slam.onlineTrajectory(), eval::AlignmentMode::kSE3,
@@ -701,6 +716,7 @@ class RunCommand : public Command {
   std::optional<std::string> features_;
   std::optional<std::string> model_;
   std::optional<std::string> segmenter_;
+  std::optional<int> segment_every_;
   bool instance_masks_ = false;
   std::optional<fs::path> overlay_dir_;
   int overlay_every_ = 10;

@@ -169,6 +169,8 @@ void SegmenterOptions::validate() const {
   }
   if (mask_dilate < 0) throw OptionError("semantics.mask_dilate", "must be >= 0");
   if (mask_erode < 0) throw OptionError("semantics.mask_erode", "must be >= 0");
+  if (every_n_frames < 1) throw OptionError("semantics.every_n_frames", "must be >= 1");
+  propagation.validate();
   yolo.validate();
   taxonomy.validate();
 }

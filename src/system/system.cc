@@ -118,6 +118,7 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
     : options_(checkedOptions(options)),
       front_end_(options_.front_end, cam0, isMonocular(options_.mode) ? std::nullopt : cam1),
       segmenter_(std::move(segmenter)),
+      propagator_(options_.semantics.propagation),
       tracker_(
           options_.tracker,
           tracking::PyramidInfo{front_end_.pyramid().scale_factor, front_end_.pyramid().levels},
@@ -236,25 +237,75 @@ sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {
     right = segmenter_->segment(bundle.image1, bundle.t_ns, 1);
   }
   segment_ms_ += 1e3 * secondsSince(start);
+  ++segmented_frames_;
   return semantics::toInstanceMasks(left, right, segmenter_->idsNameObjects());
+}
+
+sensors::InstanceMasks System::propagate(const features::FeatureSet& left) {
+  const auto start = Clock::now();
+  sensors::InstanceMasks masks = propagator_.propagate(left);
+  propagate_ms_ += 1e3 * secondsSince(start);
+  ++propagated_frames_;
+  return masks;
+}
+
+tracking::Frame System::buildSegmentedFrame(const io::FrameBundle& bundle,
+                                            std::optional<sensors::InstanceMasks>& masks) {
+  const auto every = static_cast<std::size_t>(options_.semantics.every_n_frames);
+  const std::size_t built = segmented_frames_ + propagated_frames_;
+  const bool fresh = built % every == 0 || !propagator_.hasReference();
+  if (fresh) {
+    if (!segment_thread_) segment_thread_ = std::make_unique<TaskThread>();
+    segment_thread_->run([&] { masks = segment(bundle); });
+  }
+  tracking::Frame frame;
+  try {
+    frame = front_end_.build(bundle, [&](const features::FeatureSet& left) {
+      if (fresh) {
+        segment_thread_->wait();
+      } else {
+        masks = propagate(left);
+      }
+      return masks;
+    });
+    if (fresh) segment_thread_->wait();  // returns at once unless the bundle had masks
+  } catch (...) {
+    // The job refers to `bundle` and `masks`: let it finish before they go.
+    try {
+      if (fresh) segment_thread_->wait();
+    } catch (...) {
+    }
+    throw;
+  }
+  if (masks) propagator_.setReference(*masks, frame.features);
+  return frame;
 }
 
 tracking::Frame System::buildFrame(const io::FrameBundle& bundle) {
   if (!segmenter_ && !front_end_callback_) return front_end_.build(bundle);
   io::FrameBundle labelled = bundle;
-  if (segmenter_) labelled.masks = segment(bundle);
-  tracking::Frame frame = front_end_.build(labelled);
+  // Masks the reader gave (bundle.masks) take precedence over the segmenter.
+  tracking::Frame frame = segmenter_ && !bundle.masks ? buildSegmentedFrame(bundle, labelled.masks)
+                                                      : front_end_.build(bundle);
   if (front_end_callback_) front_end_callback_(labelled, frame);
   return frame;
+}
+
+void System::collectFrontEndTimes() {
+  timings_.segment_ms = segment_ms_;
+  timings_.segmented_frames = segmented_frames_;
+  timings_.propagated_frames = propagated_frames_;
+  timings_.propagate_ms = propagate_ms_;
+  timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
+  timings_.busy.segmentation_ms = segment_thread_ ? segment_thread_->cpuMs() : 0.0;
 }
 
 tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
   const auto start = Clock::now();
   const double cpu_start = threadCpuMs();
   const tracking::Frame frame = buildFrame(bundle);
-  timings_.segment_ms = segment_ms_;
   timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
-  timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
+  collectFrontEndTimes();
   const tracking::TrackingResult result = track(frame);
   timings_.wall_s += secondsSince(start);
   return result;
@@ -333,8 +384,7 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
     frames.close();
     front_end.join();
     timings_.busy.front_end_ms += front_end_ms;
-    timings_.segment_ms = segment_ms_;
-    timings_.busy.extraction_helper_ms = front_end_.helperCpuMs();
+    collectFrontEndTimes();
     timings_.wall_s += secondsSince(start);
   };
   try {

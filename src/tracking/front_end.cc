@@ -96,6 +96,10 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& 
 }
 
 Frame FrontEnd::build(const io::FrameBundle& bundle) {
+  return build(bundle, {});
+}
+
+Frame FrontEnd::build(const io::FrameBundle& bundle, const MasksOfFeatures& masks_of) {
   Frame frame;
   frame.index = bundle.index;
   frame.t_ns = bundle.t_ns;
@@ -103,27 +107,17 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   const bool stereo = stereo_matcher_ && !bundle.image1.empty();
   auto start = Clock::now();
   features::FeatureSet right;
-  if (stereo && helper_) {
-    helper_->run([&] { right = extractRight(bundle); });
-    try {
-      frame.features = left_extractor_->extract(bundle.image0);
-    } catch (...) {
-      // The job refers to `bundle` and `right`: let it finish before they go.
-      try {
-        helper_->wait();
-      } catch (...) {
-      }
-      throw;
-    }
-    helper_->wait();
-  } else {
-    frame.features = left_extractor_->extract(bundle.image0);
-    if (stereo) right = extractRight(bundle);
-  }
-  if (bundle.masks) labelKeypoints(bundle.masks->cam0, *bundle.masks, frame.features.keypoints);
+  extract(bundle, stereo, frame, right);
   frame.extract_ms = millisecondsSince(start);
+  // Waiting for the masks is the segmentation's time, not the front end's.
+  std::optional<sensors::InstanceMasks> masks = bundle.masks;
+  if (!masks && masks_of) masks = masks_of(frame.features);
 
   start = Clock::now();
+  if (masks) {
+    labelKeypoints(masks->cam0, *masks, frame.features.keypoints);
+    labelKeypoints(masks->cam1, *masks, right.keypoints);
+  }
   const std::size_t n = frame.features.size();
   frame.normalized.resize(n);
   frame.depth_m.assign(n, -1.0);
@@ -131,21 +125,40 @@ Frame FrontEnd::build(const io::FrameBundle& bundle) {
   frame.right_normalized.assign(n, std::nullopt);
   for (std::size_t i = 0; i < n; ++i)
     frame.normalized[i] = normalizedOf(camera0_, frame.features.keypoints[i].pixel);
-  if (stereo) matchStereo(right, bundle, frame);
+  if (stereo) matchStereo(right, bundle, masks, frame);
   frame.stereo_ms = millisecondsSince(start);
   return frame;
 }
 
-features::FeatureSet FrontEnd::extractRight(const io::FrameBundle& bundle) {
-  features::FeatureSet right = right_extractor_->extract(bundle.image1);
-  if (bundle.masks) labelKeypoints(bundle.masks->cam1, *bundle.masks, right.keypoints);
-  return right;
+void FrontEnd::extract(const io::FrameBundle& bundle, bool stereo, Frame& frame,
+                       features::FeatureSet& right) {
+  if (!stereo) {
+    frame.features = left_extractor_->extract(bundle.image0);
+    return;
+  }
+  if (!helper_) {
+    frame.features = left_extractor_->extract(bundle.image0);
+    right = right_extractor_->extract(bundle.image1);
+    return;
+  }
+  helper_->run([&] { right = right_extractor_->extract(bundle.image1); });
+  try {
+    frame.features = left_extractor_->extract(bundle.image0);
+  } catch (...) {
+    // The job refers to `bundle` and `right`: let it finish before they go.
+    try {
+      helper_->wait();
+    } catch (...) {
+    }
+    throw;
+  }
+  helper_->wait();
 }
 
 void FrontEnd::matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
-                           Frame& frame) const {
+                           const std::optional<sensors::InstanceMasks>& masks, Frame& frame) const {
   // Right keypoints are labelled only when the right image has a mask of its own.
-  const bool right_labelled = !bundle.masks || !bundle.masks->cam1.empty();
+  const bool right_labelled = !masks || !masks->cam1.empty();
   const features::StereoMatcher& matcher = right_labelled ? *stereo_matcher_ : *label_free_matcher_;
   const std::vector<features::StereoMatch> matches =
       matcher.options().refine_on_images ? matcher.match(frame.features, right, bundle.image0,

@@ -190,6 +190,13 @@ semantics:
   right_labels: left
   mask_dilate: 2
   mask_erode: 1
+  every_n_frames: 3
+  propagation_radius_px: 30
+  propagation_max_hamming: 50
+  propagation_max_l2: 0.7
+  propagation_ratio: 0.7
+  propagation_min_matches: 10
+  propagation_min_instance_matches: 5
   yolo_model: "yolov8n-seg.onnx"
   yolo_input_size: 640
   yolo_score_threshold: 0.3
@@ -259,7 +266,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 198u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 205u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -84,5 +84,74 @@ TEST(SystemSegmenter, DilatedMasksLabelMoreKeypoints) {
   EXPECT_LT(eroded.keypoints_on_objects, exact.keypoints_on_objects * 9 / 10);
 }
 
+/// Keypoints on objects (by the true masks) of the frames whose masks were propagated, and how
+/// many of them the propagated masks, and the last segmented frame's masks left in place, label
+/// with their true class; and the keypoints the propagated masks put on objects wrongly.
+struct PropagationScore {
+  long on_objects = 0;
+  long propagated_right = 0;
+  long stale_right = 0;
+  long background = 0;        ///< Keypoints on the background (by the true masks).
+  long propagated_false = 0;  ///< ... labelled movable by the propagated masks.
+};
+
+PropagationScore scorePropagation(int every_n_frames) {
+  const fs::path& path = colourStreet();
+  const auto source =
+      io::openDataset(io::DatasetKind::kEuroc, path, {.inertial = false, .instance_masks = false});
+  SystemOptions options;
+  options.mode = SensorMode::kStereo;
+  options.semantics.segmenter = "dataset";
+  options.semantics.every_n_frames = every_n_frames;
+  System slam(options, source->camera0(), source->camera1(), source->imu(),
+              semantics::makeSegmenter(options.semantics, path));
+  const std::unique_ptr<semantics::Segmenter> truth =
+      semantics::makeSegmenter(options.semantics, path);
+  PropagationScore score;
+  cv::Mat last_segmented;
+  slam.setFrontEndCallback([&](const io::FrameBundle& bundle, const tracking::Frame& frame) {
+    const semantics::Segmentation exact = truth->segment(bundle.image0, bundle.t_ns, 0);
+    const auto classAt = [](const semantics::Segmentation& s, const cv::Mat& ids,
+                            const features::Keypoint& k) {
+      const int id = ids.at<std::uint16_t>(static_cast<int>(std::lround(k.pixel.y())),
+                                           static_cast<int>(std::lround(k.pixel.x())));
+      const semantics::Instance* instance = s.find(id);
+      return instance ? instance->class_id : features::kClassBackground;
+    };
+    if (bundle.index % static_cast<std::size_t>(every_n_frames) == 0) {
+      last_segmented = exact.ids;
+      return;
+    }
+    for (const features::Keypoint& k : frame.features.keypoints) {
+      const int true_class = classAt(exact, exact.ids, k);
+      if (true_class == features::kClassBackground) {
+        ++score.background;
+        score.propagated_false += k.class_id != features::kClassBackground;
+        continue;
+      }
+      ++score.on_objects;
+      score.propagated_right += k.class_id == true_class;
+      score.stale_right += classAt(exact, last_segmented, k) == true_class;
+    }
+  });
+  slam.run(*source);
+  EXPECT_EQ(slam.timings().propagated_frames,
+            slam.timings().frames - slam.timings().segmented_frames);
+  return score;
+}
+
+TEST(SystemSegmenter, PropagatedMasksFollowTheObjectsBetweenSegmentedFrames) {
+  const PropagationScore score = scorePropagation(3);
+  std::cout << "propagated frames: " << score.on_objects << " keypoints on objects, "
+            << score.propagated_right << " labelled right by the propagated masks, "
+            << score.stale_right << " by the last segmented masks; " << score.propagated_false
+            << " of " << score.background << " background keypoints labelled movable\n";
+  ASSERT_GT(score.on_objects, 300);
+  // Measured: 89 % right against 74 % with the masks left in place; 0.5 % false.
+  EXPECT_GT(score.propagated_right, score.on_objects * 85 / 100);
+  EXPECT_GT(score.propagated_right, score.stale_right + score.on_objects / 10);
+  EXPECT_LT(score.propagated_false, score.background / 100);
+}
+
 }  // namespace
 }  // namespace superdyna::system

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "superdyna/core/time.h"
+#include "superdyna/semantics/mask_propagation.h"
 #include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::semantics {
@@ -120,6 +121,11 @@ struct SegmenterOptions {
   /// Iterations of a 3x3 square dilation / erosion of every instance mask (mask_perturbation.h).
   int mask_dilate = 0;
   int mask_erode = 0;
+  /// Segment one frame in N (the first of each N); the frames in between get the masks of the
+  /// frame before them, propagated through their keypoint matches (mask_propagation.h), so that
+  /// the network's cost is paid on every N-th frame only. 1 = every frame.
+  int every_n_frames = 1;
+  PropagationOptions propagation;
   YoloOptions yolo;
   Taxonomy taxonomy;
   void validate() const;  ///< OptionError naming the first invalid field.

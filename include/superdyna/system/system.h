@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "superdyna/core/task_thread.h"
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/loop/loop_closer.h"
@@ -88,6 +89,8 @@ struct ThreadBusyTimes {
   double front_end_ms = 0.0;  ///< Reading the dataset (in run()), extraction, stereo.
   /// The front end's helper thread extracting right images (FrontEndOptions::parallel_extraction).
   double extraction_helper_ms = 0.0;
+  /// The front end's segmentation thread (segmenting while the features are extracted).
+  double segmentation_ms = 0.0;
   double tracking_ms = 0.0;  ///< Tracking and keyframe insertion (plus local BA if sequential).
   double mapping_ms = 0.0;   ///< The mapping thread (concurrent only).
 };
@@ -110,6 +113,9 @@ struct TimingSummary {
   ThreadBusyTimes busy;
   double wall_s = 0.0;      ///< Wall-clock time of process() / run() calls, to the end of mapping.
   double segment_ms = 0.0;  ///< Segmentation (both images) in the front end, summed.
+  std::size_t segmented_frames = 0;   ///< Frames whose images the segmenter saw.
+  std::size_t propagated_frames = 0;  ///< Frames with masks propagated (every_n_frames > 1).
+  double propagate_ms = 0.0;          ///< Mask propagation, summed.
   MatchCounts matches;
   double meanMs(double total_ms) const { return frames > 0 ? total_ms / frames : 0.0; }
   double framesPerSecond() const { return wall_s > 0.0 ? frames / wall_s : 0.0; }
@@ -208,8 +214,17 @@ class System {
   /// The front end's frame of a bundle, its keypoints labelled with the segmenter's masks when
   /// there is one. Runs in the front-end thread.
   tracking::Frame buildFrame(const io::FrameBundle& bundle);
+  /// The front end's frame of a bundle labelled with masks: the segmenter's, computed beside the
+  /// feature extraction, on every N-th frame (SegmenterOptions::every_n_frames), else propagated
+  /// from the frame before. `masks` receives them.
+  tracking::Frame buildSegmentedFrame(const io::FrameBundle& bundle,
+                                      std::optional<sensors::InstanceMasks>& masks);
   /// The segmenter's masks of both images of a bundle.
   sensors::InstanceMasks segment(const io::FrameBundle& bundle);
+  /// The masks of a frame not segmented, propagated from the frame before.
+  sensors::InstanceMasks propagate(const features::FeatureSet& left);
+  /// Copies the front end's segmentation counters and helper threads' CPU times to timings_.
+  void collectFrontEndTimes();
   /// Appends the frame to the trajectory (initialising mono frames are counted, not recorded) and
   /// applies a change of the world of the current map to the poses recorded on it.
   void record(TimeNs t_ns, const tracking::TrackingResult& result);
@@ -227,6 +242,10 @@ class System {
   std::unique_ptr<semantics::Segmenter> segmenter_;
   FrontEndCallback front_end_callback_;
   double segment_ms_ = 0.0;  ///< Front-end thread's segmentation time, copied to timings_.
+  std::size_t segmented_frames_ = 0, propagated_frames_ = 0;  ///< Copied to timings_.
+  double propagate_ms_ = 0.0;                                 ///< Copied to timings_.
+  std::unique_ptr<TaskThread> segment_thread_;  ///< Segments while the front end extracts.
+  semantics::MaskPropagator propagator_;        ///< Masks of the frames not segmented.
   /// Declared before mapping_ (destroyed after it): the mapping jobs call it.
   std::unique_ptr<LoopStage> loop_;
   tracking::Tracker tracker_;

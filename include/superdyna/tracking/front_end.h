@@ -16,6 +16,7 @@
 // thread extracts the left one (each image has its own extractor, so the features are the same
 // as when extracting one after the other).
 
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -55,6 +56,14 @@ class FrontEnd {
   /// Features (and stereo matches when both a right camera and image1 exist) of one bundle.
   Frame build(const io::FrameBundle& bundle);
 
+  /// Masks that become known only once the left features are extracted: a segmentation running
+  /// beside the extraction, or masks propagated through the new features (mask_propagation.h).
+  using MasksOfFeatures =
+      std::function<std::optional<sensors::InstanceMasks>(const features::FeatureSet& left)>;
+  /// As build(bundle), the keypoints labelled with the masks `masks_of` returns (bundle.masks,
+  /// when present, take precedence and `masks_of` is not called).
+  Frame build(const io::FrameBundle& bundle, const MasksOfFeatures& masks_of);
+
   bool isStereo() const { return stereo_matcher_.has_value(); }
   /// Scale pyramid of the extractor (map points and optimisation weights use it).
   features::PyramidLayout pyramid() const { return pyramid_; }
@@ -63,10 +72,11 @@ class FrontEnd {
   double helperCpuMs() const { return helper_ ? helper_->cpuMs() : 0.0; }
 
  private:
-  /// Features of the right image, labelled with the right instance mask when there is one.
-  features::FeatureSet extractRight(const io::FrameBundle& bundle);
+  /// Features of both images (the right one empty without stereo), unlabelled.
+  void extract(const io::FrameBundle& bundle, bool stereo, Frame& frame,
+               features::FeatureSet& right);
   void matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
-                   Frame& frame) const;
+                   const std::optional<sensors::InstanceMasks>& masks, Frame& frame) const;
 
   CameraModel camera0_;
   features::PyramidLayout pyramid_;
