@@ -4,10 +4,12 @@
 // links) and timed on the last pair, with the ground-truth relative pose as the prediction.
 // Usage: build/bin/superdyna_dynamic_bench [benchmark options]; the sequence is
 // $SUPERDYNA_BENCH_SEQUENCE (a folder holding mav0/, e.g. from `superdyna simulate --dynamic
-// high`), frames $SUPERDYNA_BENCH_FRAME (default 140) - 2 to that one.
+// high`), frames $SUPERDYNA_BENCH_FRAME (default 140) - 2 to that one. BM_ProjectionMatching times
+// the frame-to-frame matching of the last two, class-wise or not.
 
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -16,6 +18,7 @@
 #include <vector>
 
 #include "superdyna/dynamic/moving_object_detector.h"
+#include "superdyna/features/matcher.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/tracking/front_end.h"
 
@@ -95,6 +98,41 @@ void BM_MovingObjectTest(benchmark::State& state) {
   state.counters["objects"] = objects;
 }
 BENCHMARK(BM_MovingObjectTest)->Arg(0)->Arg(1)->ArgName("geometric")->Unit(benchmark::kMillisecond);
+
+/// Frame-to-frame matching by projection as tracking does it (the previous frame's stereo points
+/// projected with the true motion, 15 px radius), class-wise (the paper's matching within a
+/// class) or not: the cost class-wise matching adds or saves.
+void BM_ProjectionMatching(benchmark::State& state) {
+  const Frames* f = loadFrames();
+  if (!f) {
+    state.SkipWithError("no sequence (SUPERDYNA_BENCH_SEQUENCE)");
+    return;
+  }
+  const tracking::Frame& previous = f->frames[1];
+  const tracking::Frame& current = f->frames[2];
+  const SE3d T_c2_c1 = f->T_w_c[2].inverse() * f->T_w_c[1];
+  std::vector<Eigen::Vector2d> predicted(previous.size(), Eigen::Vector2d::Constant(NAN));
+  for (std::size_t i = 0; i < previous.size(); ++i) {
+    if (!(previous.depth_m[i] > 0.0)) continue;
+    if (const auto pixel = f->camera.project(T_c2_c1 * previous.p_c0[i])) predicted[i] = *pixel;
+  }
+  const features::KeypointGrid grid(current.features.keypoints, current.features.image_size);
+  features::ProjectionMatchOptions options;
+  options.same_class_only = state.range(0) != 0;
+  std::size_t matches = 0;
+  for (auto _ : state) {
+    const auto found =
+        features::matchByProjection(previous.features, predicted, current.features, grid, options);
+    matches = found.size();
+    benchmark::DoNotOptimize(found.data());
+  }
+  state.counters["matches"] = static_cast<double>(matches);
+}
+BENCHMARK(BM_ProjectionMatching)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("class_wise")
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

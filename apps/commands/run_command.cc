@@ -566,6 +566,7 @@ class RunCommand : public Command {
     }
     if (dynamic_) options.tracker.dynamic.mode = dynamic::parseDynamicMode(*dynamic_, "--dynamic");
     if (options.semantics.segmenter != "dataset" &&
+        options.tracker.dynamic.mode != dynamic::DynamicMode::kOff &&
         options.tracker.dynamic.cull_points_by_instance) {
       // Network segmenters renumber their instances every frame: a map point's instance id says
       // nothing about which object it lies on later.
