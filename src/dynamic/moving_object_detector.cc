@@ -221,6 +221,7 @@ MovingObjectDetector::Endpoint MovingObjectDetector::endpointOf(const FrameObser
   end.has_depth = frame.hasDepth(k);
   if (end.has_depth) end.p = (*frame.p_c)[k];
   end.octave = frame.features->keypoints[k].octave;
+  end.on_border = frame.features->keypoints[k].on_instance_border;
   return end;
 }
 
@@ -297,12 +298,25 @@ std::optional<std::pair<double, double>> MovingObjectDetector::linkResidual(
   return std::make_pair(*residual, linkScale(link, current) * thresholds.px[index(test)]);
 }
 
+std::vector<MovingObjectDetector::Link> MovingObjectDetector::testableLinks(
+    const std::vector<Link>& links, const FrameObservations& current) const {
+  if (!options_.skip_border_pairs) return links;
+  std::vector<Link> inner;
+  for (const Link& link : links) {
+    const auto k = static_cast<std::size_t>(link.current);
+    if (!link.from.on_border && !current.features->keypoints[k].on_instance_border)
+      inner.push_back(link);
+  }
+  return inner.empty() ? links : inner;
+}
+
 void MovingObjectDetector::testObject(const std::vector<Link>& links,
                                       const FrameObservations& current, const SE3d& T_cur_from,
                                       const Thresholds& thresholds, std::uint64_t draw_seed,
                                       ObjectDecision& decision) const {
   const std::vector<Link> drawn =
-      drawSubset(links, static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
+      drawSubset(testableLinks(links, current), static_cast<std::size_t>(options_.max_tested_pairs),
+                 draw_seed);
   double worst_excess = -std::numeric_limits<double>::infinity();
   for (const Link& link : drawn) {
     const auto tested = linkResidual(link, current, T_cur_from, thresholds);

@@ -220,6 +220,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
       {"dynamic",
        {{"mode", &t.dynamic.mode},
         {"min_pairs", &t.dynamic.min_pairs},
+        {"skip_border_pairs", &t.dynamic.skip_border_pairs},
         {"max_tested_pairs", &t.dynamic.max_tested_pairs},
         {"threshold_scale", &t.dynamic.threshold_scale},
         {"min_threshold_px", &t.dynamic.min_threshold_px},

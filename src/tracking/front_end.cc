@@ -67,16 +67,42 @@ void FrontEndOptions::validate() const {
   stereo.validate();
 }
 
+double instanceBorderRadiusPx(const features::Keypoint& keypoint) {
+  return std::max(3.0, 0.1 * keypoint.size);
+}
+
+namespace {
+
+int idAt(const cv::Mat& ids, const Eigen::Vector2d& pixel) {
+  const int col = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, ids.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, ids.rows - 1);
+  return ids.at<std::uint16_t>(row, col);
+}
+
+/// Whether another id than `id` lies on the square of half-side `radius` around `pixel` (its
+/// corners and edge midpoints, within the image).
+bool otherIdAround(const cv::Mat& ids, const Eigen::Vector2d& pixel, double radius, int id) {
+  for (const int dy : {-1, 0, 1}) {
+    for (const int dx : {-1, 0, 1}) {
+      if (dx == 0 && dy == 0) continue;
+      const Eigen::Vector2d p = pixel + radius * Eigen::Vector2d(dx, dy);
+      if (p.x() < 0.0 || p.y() < 0.0 || p.x() > ids.cols - 1 || p.y() > ids.rows - 1) continue;
+      if (idAt(ids, p) != id) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints) {
   if (instance_mask.empty()) return;
   for (features::Keypoint& k : keypoints) {
-    const int col =
-        std::clamp(static_cast<int>(std::lround(k.pixel.x())), 0, instance_mask.cols - 1);
-    const int row =
-        std::clamp(static_cast<int>(std::lround(k.pixel.y())), 0, instance_mask.rows - 1);
-    k.instance_id = instance_mask.at<std::uint16_t>(row, col);
+    k.instance_id = idAt(instance_mask, k.pixel);
     k.class_id = masks.classOf(k.instance_id);
+    k.on_instance_border =
+        otherIdAround(instance_mask, k.pixel, instanceBorderRadiusPx(k), k.instance_id);
   }
 }
 

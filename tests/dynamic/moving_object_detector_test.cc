@@ -387,6 +387,40 @@ TEST(MovingObjectDetectorTest, AVelocityErrorOfThePredictionDoesNotMoveANearPark
   }
 }
 
+/// Marks most keypoints of `instance` as on its mask border, their stereo points pushed to twice
+/// the depth (the background behind the silhouette).
+void putOnTheBorder(SyntheticFrame& frame, int instance) {
+  for (std::size_t k = 0; k < frame.features.size(); ++k) {
+    features::Keypoint& keypoint = frame.features.keypoints[k];
+    if (keypoint.instance_id != instance || frame.point_of_keypoint[k] % 10 >= 7) continue;
+    keypoint.on_instance_border = true;
+    frame.depth_m[k] *= 2.0;
+    frame.p_c[k] *= 2.0;
+  }
+}
+
+TEST(MovingObjectDetectorTest, BorderPairsDoNotMoveAParkedCar) {
+  // 70 % of the parked car's keypoints are corners on its silhouette whose stereo depth is the
+  // background's: tested, they outvote the inner ones.
+  for (const bool skip : {false, true}) {
+    Scene scene(11);
+    MovingObjectOptions options = geometric();
+    options.skip_border_pairs = skip;
+    MovingObjectDetector detector(options, camera());
+    SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+    scene.move(2, Eigen::Vector3d(-0.6, 0.0, 0.0));  // the driving car, with its border too
+    SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+    putOnTheBorder(f0, 2);
+    putOnTheBorder(f1, 2);
+    putOnTheBorder(f0, 1);
+    putOnTheBorder(f1, 1);
+    const MovingObjectReport report = detectAfter(detector, f0, f1, curFromPrev(1));
+    EXPECT_EQ(decisionOf(report, 1).decision, skip ? ObjectState::kStatic : ObjectState::kMoving)
+        << (skip ? "border pairs skipped" : "border pairs tested");
+    EXPECT_EQ(decisionOf(report, 2).decision, ObjectState::kMoving);
+  }
+}
+
 TEST(MovingObjectDetectorTest, TheGeometricTestDropsAnUnlabelledMover) {
   // A shopping cart the segmenter does not know: background class, but it moves.
   for (const bool geometric : {false, true}) {

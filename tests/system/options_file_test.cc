@@ -105,6 +105,7 @@ tracker:
 dynamic:
   mode: semantic-geometric
   min_pairs: 4
+  skip_border_pairs: false
   max_tested_pairs: 12
   threshold_scale: 3.5
   min_threshold_px: 1.25
@@ -266,7 +267,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 205u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 206u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

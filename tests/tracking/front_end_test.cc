@@ -33,6 +33,30 @@ TEST(LabelKeypoints, TakesInstanceAndClassFromTheMaskPixel) {
   EXPECT_EQ(keypoints[3].instance_id, 0);
 }
 
+TEST(LabelKeypoints, MarksKeypointsNearAnotherInstanceAsOnTheBorder) {
+  sensors::InstanceMasks masks;
+  masks.cam0 = cv::Mat(40, 60, CV_16UC1, cv::Scalar(0));
+  masks.cam0(cv::Rect(10, 5, 20, 20)).setTo(3);  // columns 10..29, rows 5..24
+  masks.class_of_instance = {{3, features::kClassVehicle}};
+  std::vector<features::Keypoint> keypoints(5);
+  keypoints[0].pixel = {20.0, 15.0};  // 10 px inside
+  keypoints[1].pixel = {12.0, 15.0};  // 2 px inside the left edge
+  keypoints[2].pixel = {7.0, 15.0};   // background, 3 px left of the object
+  keypoints[3].pixel = {50.0, 30.0};  // background, far from it
+  keypoints[4].pixel = {16.0, 15.0};  // 6 px inside, but an octave-6 ORB patch (size 93)
+  keypoints[4].size = 93.0f;
+  labelKeypoints(masks.cam0, masks, keypoints);
+  EXPECT_DOUBLE_EQ(instanceBorderRadiusPx(keypoints[0]), 3.0);
+  EXPECT_DOUBLE_EQ(instanceBorderRadiusPx(keypoints[4]), 9.3);
+  EXPECT_FALSE(keypoints[0].on_instance_border);
+  EXPECT_TRUE(keypoints[1].on_instance_border);
+  EXPECT_TRUE(keypoints[2].on_instance_border);
+  EXPECT_FALSE(keypoints[3].on_instance_border);
+  EXPECT_TRUE(keypoints[4].on_instance_border);
+  EXPECT_EQ(keypoints[1].instance_id, 3);
+  EXPECT_EQ(keypoints[2].instance_id, 0);
+}
+
 /// The first stereo frame of the shared EuRoC excerpt.
 io::FrameBundle eurocFrame(const std::filesystem::path& path) {
   io::DatasetSourceOptions options;

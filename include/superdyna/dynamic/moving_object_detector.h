@@ -23,7 +23,12 @@
 //    has stereo depth (stereo_reprojection), else epipolar, or rotation transfer when the
 //    predicted translation is below min_translation_m. The object moves in this frame when at
 //    least max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
-//    threshold of their test (the paper: any one pair).
+//    threshold of their test (the paper: any one pair). With skip_border_pairs, pairs with a
+//    keypoint on the object's mask border (features::Keypoint::on_instance_border) are left out
+//    when the object has others: such a corner is formed with the background behind the
+//    silhouette and slides along it as the camera moves, and its stereo depth may be the
+//    background's (a parked car's border pairs were 6-8 px off under stereo reprojection while
+//    its inner pairs were within 1 px).
 // 5. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
 //    object inherits the track of the previous instance most of its pairs come from (greedily,
 //    strongest links first, each previous track to one object; a new track when none). A new
@@ -62,6 +67,7 @@ struct MovingObjectOptions {
   DynamicMode mode = DynamicMode::kOff;
   int min_pairs = 1;                   ///< Fewer pairs: unverified this frame, >= 1.
   int max_tested_pairs = 10;           ///< Pairs drawn per object, >= 1.
+  bool skip_border_pairs = true;       ///< Test the pairs off the mask border first (above).
   double threshold_scale = 2.5;        ///< Times the median background residual, > 0.
   double min_threshold_px = 1.0;       ///< Lower bound of a threshold [px], > 0.
   double fallback_threshold_px = 3.0;  ///< Threshold without enough background pairs [px], > 0.
@@ -177,6 +183,7 @@ class MovingObjectDetector {
     Eigen::Vector3d p = Eigen::Vector3d::Zero();  ///< Stereo point (when has_depth).
     bool has_depth = false;
     int octave = 0;
+    bool on_border = false;  ///< features::Keypoint::on_instance_border.
   };
   /// An earlier keypoint and the current keypoint it became.
   struct Link {
@@ -232,6 +239,10 @@ class MovingObjectDetector {
   void dropKeypoints(const std::map<int, ObjectDecision>& objects,
                      const std::vector<char>& moving_cells, const FrameObservations& current,
                      MovingObjectReport& report) const;
+  /// The links an object is tested on: those off the mask border when it has any
+  /// (skip_border_pairs), else all.
+  std::vector<Link> testableLinks(const std::vector<Link>& links,
+                                  const FrameObservations& current) const;
   void testObject(const std::vector<Link>& links, const FrameObservations& current,
                   const SE3d& T_cur_from, const Thresholds& thresholds, std::uint64_t draw_seed,
                   ObjectDecision& decision) const;

@@ -29,6 +29,10 @@ struct Keypoint {
   float size = 0.0f;      ///< Diameter of the described patch in level-0 pixels [px].
   int class_id = 0;  ///< kClassBackground / kClassVehicle / kClassPedestrian / kClassOtherMovable.
   int instance_id = 0;  ///< Object instance the keypoint lies on; 0 = static background.
+  /// The mask holds another instance (or the background) within a few pixels: the corner may be
+  /// formed with what lies behind the object's silhouette, so it moves with neither of them, and
+  /// its stereo depth may belong to either (tracking::labelKeypoints).
+  bool on_instance_border = false;
 };
 
 /// How descriptors are stored and compared.

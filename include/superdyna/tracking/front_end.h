@@ -42,9 +42,15 @@ struct FrontEndOptions {
 };
 
 /// Labels keypoints with the instance id under their pixel (rounded to the nearest pixel,
-/// clamped to the mask) and its class from `masks`; an empty mask leaves them untouched.
+/// clamped to the mask) and its class from `masks`, and marks those within
+/// instanceBorderRadiusPx() of another id (Keypoint::on_instance_border); an empty mask leaves
+/// them untouched.
 void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& masks,
                     std::vector<features::Keypoint>& keypoints);
+/// Half-side [px] of the square around a keypoint that labelKeypoints() searches for another id:
+/// 3 px, or a tenth of the described patch for coarse octaves (an ORB corner at octave 6 sits
+/// anywhere within 3 px of its level-0 position).
+double instanceBorderRadiusPx(const features::Keypoint& keypoint);
 
 class FrontEnd {
  public:
