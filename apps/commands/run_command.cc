@@ -391,9 +391,9 @@ class RunCommand : public Command {
                      "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision,"
                      "keypoints,dropped");
     sub_->add_option("--segmenter", segmenter_,
-                     "Instance segmentation labelling the keypoints: none | dataset | yolo "
-                     "(overrides semantics.segmenter)")
-        ->check(CLI::IsMember({"none", "dataset", "yolo"}));
+                     "Instance segmentation labelling the keypoints: none | dataset | yolo | "
+                     "maskrcnn (overrides semantics.segmenter)")
+        ->check(CLI::IsMember({"none", "dataset", "yolo", "maskrcnn"}));
     sub_->add_flag("--instance-masks", instance_masks_,
                    "Short for --segmenter dataset with semantics.dataset_format masks: label "
                    "keypoints with the sequence's instance masks (simulated sequences: "

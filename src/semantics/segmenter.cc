@@ -11,6 +11,7 @@
 #include "superdyna/core/error.h"
 #include "superdyna/semantics/dataset_segmenter.h"
 #include "superdyna/semantics/mask_perturbation.h"
+#include "superdyna/semantics/maskrcnn_segmenter.h"
 #include "superdyna/semantics/yolo_segmenter.h"
 
 namespace superdyna::semantics {
@@ -154,10 +155,25 @@ void YoloOptions::validate() const {
   }
 }
 
+void MaskRcnnOptions::validate() const {
+  if (!(score_threshold > 0.0 && score_threshold < 1.0)) {
+    throw OptionError("semantics.maskrcnn_score_threshold", "must be in (0, 1)");
+  }
+  if (!(mask_threshold > 0.0 && mask_threshold < 1.0)) {
+    throw OptionError("semantics.maskrcnn_mask_threshold", "must be in (0, 1)");
+  }
+  if (min_area_px < 1) throw OptionError("semantics.maskrcnn_min_area_px", "must be >= 1");
+  if (max_detections < 1) throw OptionError("semantics.maskrcnn_max_detections", "must be >= 1");
+  if (inference_threads < 1) {
+    throw OptionError("semantics.maskrcnn_inference_threads", "must be >= 1");
+  }
+}
+
 void SegmenterOptions::validate() const {
-  if (segmenter != "none" && segmenter != "dataset" && segmenter != "yolo") {
+  if (segmenter != "none" && segmenter != "dataset" && segmenter != "yolo" &&
+      segmenter != "maskrcnn") {
     throw OptionError("semantics.segmenter",
-                      fmt::format("expected none, dataset or yolo, got '{}'", segmenter));
+                      fmt::format("expected none, dataset, yolo or maskrcnn, got '{}'", segmenter));
   }
   if (dataset_format != "masks" && dataset_format != "color") {
     throw OptionError("semantics.dataset_format",
@@ -172,6 +188,7 @@ void SegmenterOptions::validate() const {
   if (every_n_frames < 1) throw OptionError("semantics.every_n_frames", "must be >= 1");
   propagation.validate();
   yolo.validate();
+  maskrcnn.validate();
   taxonomy.validate();
 }
 
@@ -187,6 +204,8 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
     segmenter = std::make_unique<DatasetSegmenter>(dataset, options);
   } else if (options.segmenter == "yolo") {
     segmenter = std::make_unique<YoloSegmenter>(options.yolo, options.taxonomy);
+  } else if (options.segmenter == "maskrcnn") {
+    segmenter = std::make_unique<MaskRcnnSegmenter>(options.maskrcnn, options.taxonomy);
   } else {
     return nullptr;
   }

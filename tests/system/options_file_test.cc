@@ -205,6 +205,12 @@ semantics:
   yolo_min_area_px: 50
   yolo_max_detections: 30
   yolo_inference_threads: 1
+  maskrcnn_model: "maskrcnn_mobilenet.onnx"
+  maskrcnn_score_threshold: 0.7
+  maskrcnn_mask_threshold: 0.45
+  maskrcnn_min_area_px: 60
+  maskrcnn_max_detections: 40
+  maskrcnn_inference_threads: 1
   pedestrian_labels: "person,rider"
   vehicle_labels: "car,truck"
   other_movable_labels: "dog"
@@ -266,7 +272,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 205u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 211u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

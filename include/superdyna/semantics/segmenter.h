@@ -6,7 +6,8 @@
 //   - dataset: a sequence's own segmentation — the simulator's 16-bit instance masks
 //     (mav0/camN/mask/) or VIODE-style colour images (mav0/camN/segmentation/, colour -> object id
 //     through a colour table, movable objects from an id list);
-//   - yolo: an Ultralytics YOLOv8-seg / YOLO11-seg ONNX export (yolo_segmenter.h).
+//   - yolo: an Ultralytics YOLOv8-seg / YOLO11-seg ONNX export (yolo_segmenter.h);
+//   - maskrcnn: torchvision's Mask R-CNN ONNX export (maskrcnn_segmenter.h).
 // makeSegmenter() builds the one SegmenterOptions chooses, wrapped by the mask perturbation
 // (mask_perturbation.h) when it is asked for.
 
@@ -98,8 +99,25 @@ struct YoloOptions {
   bool operator==(const YoloOptions&) const = default;
 };
 
+/// The maskrcnn backend (maskrcnn_segmenter.h): torchvision's maskrcnn_resnet50_fpn exported to
+/// ONNX (scripts/export_maskrcnn_onnx.py). The network resizes and runs NMS itself.
+struct MaskRcnnOptions {
+  /// ONNX file: a bare name is looked up in $SUPERDYNA_MODEL_DIR, then models/.
+  std::string model = "maskrcnn_resnet50_fpn.onnx";
+  /// Minimum detection score (torchvision keeps detections above 0.05; 0.5 is its examples' cut).
+  double score_threshold = 0.5;
+  /// A pixel is on the instance when its soft mask value exceeds this (torchvision's 0.5).
+  double mask_threshold = 0.5;
+  /// Instances with fewer mask pixels (after overlaps went to better-scored ones) are dropped.
+  int min_area_px = 100;
+  int max_detections = 100;  ///< Best scores first, among those of a wanted class.
+  int inference_threads = 2;
+  void validate() const;
+  bool operator==(const MaskRcnnOptions&) const = default;
+};
+
 struct SegmenterOptions {
-  /// "none" | "dataset" | "yolo".
+  /// "none" | "dataset" | "yolo" | "maskrcnn".
   std::string segmenter = "none";
   /// Dataset backend: "masks" (mav0/camN/mask/ 16-bit ids, classes from mav0/instances.csv) or
   /// "color" (mav0/camN/segmentation/ colour images).
@@ -127,6 +145,7 @@ struct SegmenterOptions {
   int every_n_frames = 1;
   PropagationOptions propagation;
   YoloOptions yolo;
+  MaskRcnnOptions maskrcnn;
   Taxonomy taxonomy;
   void validate() const;  ///< OptionError naming the first invalid field.
   bool operator==(const SegmenterOptions&) const = default;
