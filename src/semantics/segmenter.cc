@@ -10,6 +10,7 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/semantics/dataset_segmenter.h"
+#include "superdyna/semantics/id_png_segmenter.h"
 #include "superdyna/semantics/mask_perturbation.h"
 #include "superdyna/semantics/maskrcnn_segmenter.h"
 #include "superdyna/semantics/yolo_segmenter.h"
@@ -175,9 +176,9 @@ void SegmenterOptions::validate() const {
     throw OptionError("semantics.segmenter",
                       fmt::format("expected none, dataset, yolo or maskrcnn, got '{}'", segmenter));
   }
-  if (dataset_format != "masks" && dataset_format != "color") {
+  if (dataset_format != "masks" && dataset_format != "color" && dataset_format != "id_png") {
     throw OptionError("semantics.dataset_format",
-                      fmt::format("expected masks or color, got '{}'", dataset_format));
+                      fmt::format("expected masks, color or id_png, got '{}'", dataset_format));
   }
   if (right_labels != "auto" && right_labels != "segment" && right_labels != "left") {
     throw OptionError("semantics.right_labels",
@@ -192,6 +193,10 @@ void SegmenterOptions::validate() const {
   taxonomy.validate();
 }
 
+bool SegmenterOptions::idsNameObjects() const {
+  return segmenter == "dataset" && (dataset_format != "id_png" || id_png_tracked_ids);
+}
+
 bool SegmenterOptions::segmentsRightImage(const Segmenter& backend) const {
   return right_labels == "segment" || (right_labels == "auto" && backend.idsNameObjects());
 }
@@ -200,7 +205,9 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
                                          const std::filesystem::path& dataset) {
   options.validate();
   std::unique_ptr<Segmenter> segmenter;
-  if (options.segmenter == "dataset") {
+  if (options.segmenter == "dataset" && options.dataset_format == "id_png") {
+    segmenter = std::make_unique<IdPngSegmenter>(options);
+  } else if (options.segmenter == "dataset") {
     segmenter = std::make_unique<DatasetSegmenter>(dataset, options);
   } else if (options.segmenter == "yolo") {
     segmenter = std::make_unique<YoloSegmenter>(options.yolo, options.taxonomy);

@@ -187,6 +187,10 @@ semantics:
   dataset_format: color
   color_table: "rgb_ids.txt"
   movable_ids: "vehicle_ids_city_day.txt"
+  id_png_folder: "detectron2/left"
+  id_png_folder_right: "detectron2/right"
+  id_png_classes: "detectron2/classes.csv"
+  id_png_tracked_ids: true
   right_labels: left
   mask_dilate: 2
   mask_erode: 1
@@ -272,7 +276,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 211u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 215u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";
