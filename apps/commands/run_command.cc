@@ -391,9 +391,9 @@ class RunCommand : public Command {
                      "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision,"
                      "keypoints,dropped");
     sub_->add_option("--segmenter", segmenter_,
-                     "Instance segmentation labelling the keypoints: none | dataset | yolo "
-                     "(overrides semantics.segmenter)")
-        ->check(CLI::IsMember({"none", "dataset", "yolo"}));
+                     "Instance segmentation labelling the keypoints: none | dataset | yolo | "
+                     "maskrcnn (overrides semantics.segmenter)")
+        ->check(CLI::IsMember({"none", "dataset", "yolo", "maskrcnn"}));
     sub_->add_flag("--instance-masks", instance_masks_,
                    "Short for --segmenter dataset with semantics.dataset_format masks: label "
                    "keypoints with the sequence's instance masks (simulated sequences: "
@@ -565,11 +565,11 @@ class RunCommand : public Command {
       options.semantics.dataset_format = "masks";
     }
     if (dynamic_) options.tracker.dynamic.mode = dynamic::parseDynamicMode(*dynamic_, "--dynamic");
-    if (options.semantics.segmenter != "dataset" &&
+    if (!options.semantics.idsNameObjects() &&
         options.tracker.dynamic.mode != dynamic::DynamicMode::kOff &&
         options.tracker.dynamic.cull_points_by_instance) {
-      // Network segmenters renumber their instances every frame: a map point's instance id says
-      // nothing about which object it lies on later.
+      // Network segmenters (and per-image id PNGs) renumber their instances every frame: a map
+      // point's instance id says nothing about which object it lies on later.
       options.tracker.dynamic.cull_points_by_instance = false;
       fmt::print("dynamic.cull_points_by_instance: off (segmenter {} does not keep instance ids)\n",
                  options.semantics.segmenter);

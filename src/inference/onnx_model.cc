@@ -120,6 +120,44 @@ int findTensor(const TensorSpec& spec, std::size_t position, const std::vector<T
   return -1;
 }
 
+/// Largest integer magnitude a float holds exactly (2^24).
+constexpr std::int64_t kExactFloatInteger = std::int64_t{1} << 24;
+
+/// Integer values as floats; InputError (naming the output) for one a float cannot hold exactly.
+template <typename Integer>
+std::vector<float> integersAsFloats(const Integer* data, std::size_t count,
+                                    const std::string& name) {
+  std::vector<float> values(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    const auto value = static_cast<std::int64_t>(data[k]);
+    if (value > kExactFloatInteger || value < -kExactFloatInteger) {
+      throw InputError(fmt::format(
+          "output '{}' holds {}, beyond the integers a float holds exactly (2^24)", name, value));
+    }
+    values[k] = static_cast<float>(value);
+  }
+  return values;
+}
+
+/// The elements of an output tensor of `type` (float32, int32 or int64) as floats.
+std::vector<float> floatValues(const Ort::Value& value, ElementType type, std::size_t count,
+                               const std::string& name) {
+  switch (type) {
+    case ElementType::kFloat32: {
+      const float* data = value.GetTensorData<float>();
+      return std::vector<float>(data, data + count);
+    }
+    case ElementType::kInt32:
+      return integersAsFloats(value.GetTensorData<std::int32_t>(), count, name);
+    case ElementType::kInt64:
+      return integersAsFloats(value.GetTensorData<std::int64_t>(), count, name);
+    default:
+      throw InputError(
+          fmt::format("output '{}' is {}; run() returns float32, int32 and int64 outputs only",
+                      name, toString(type)));
+  }
+}
+
 }  // namespace
 
 struct OnnxModel::Impl {
@@ -137,7 +175,8 @@ struct OnnxModel::Impl {
   InputError error(const std::string& what) const { return InputError(InputLocation(file), what); }
 
   void load();
-  void checkSignature();
+  /// Takes the first of `alternatives` the model fits; InputError with every distinct problem.
+  void checkSignature(const std::vector<ModelSignature>& alternatives);
   /// What keeps the model from fitting the signature (fills input_names/output_names).
   std::optional<std::string> signatureProblem();
   std::vector<Tensor> runOnce(const std::vector<TensorView>& inputs);
@@ -175,12 +214,24 @@ void OnnxModel::Impl::load() {
   }
 }
 
-void OnnxModel::Impl::checkSignature() {
-  if (const auto problem = signatureProblem()) {
-    throw error(signature.network.empty()
-                    ? *problem
-                    : fmt::format("does not fit the {} contract: {}", signature.network, *problem));
+void OnnxModel::Impl::checkSignature(const std::vector<ModelSignature>& alternatives) {
+  std::vector<std::string> problems;
+  for (const ModelSignature& candidate : alternatives) {
+    signature = candidate;
+    input_names.clear();
+    output_names.clear();
+    const auto problem = signatureProblem();
+    if (!problem) return;
+    if (std::find(problems.begin(), problems.end(), *problem) == problems.end()) {
+      problems.push_back(*problem);
+    }
   }
+  std::string why;
+  for (const std::string& problem : problems)
+    why += (why.empty() ? "" : "; or ") + problem;
+  throw error(signature.network.empty()
+                  ? why
+                  : fmt::format("does not fit the {} contract: {}", signature.network, why));
 }
 
 std::optional<std::string> OnnxModel::Impl::signatureProblem() {
@@ -270,30 +321,38 @@ std::vector<Tensor> OnnxModel::Impl::runOnce(const std::vector<TensorView>& inpu
   std::vector<Tensor> outputs;
   for (std::size_t i = 0; i < results.size(); ++i) {
     const auto info = results[i].GetTensorTypeAndShapeInfo();
-    if (fromOrt(info.GetElementType()) != ElementType::kFloat32) {
-      throw error(fmt::format("output '{}' is {}, expected float32", output_names[i],
-                              toString(fromOrt(info.GetElementType()))));
+    const ElementType type = fromOrt(info.GetElementType());
+    if (type != signature.outputs[i].type) {
+      throw error(fmt::format("output '{}' is {}, expected {}", output_names[i], toString(type),
+                              toString(signature.outputs[i].type)));
     }
     Tensor tensor;
     tensor.shape = info.GetShape();
     if (const auto why = shapeMismatch(signature.outputs[i], tensor.shape)) {
       throw error(fmt::format("output '{}' for inputs {}: {}", output_names[i], shapes, *why));
     }
-    const float* data = results[i].GetTensorData<float>();
-    tensor.data.assign(data, data + elementCount(tensor.shape));
+    try {
+      tensor.data = floatValues(results[i], type, elementCount(tensor.shape), output_names[i]);
+    } catch (const InputError& e) {
+      throw error(e.what());
+    }
     outputs.push_back(std::move(tensor));
   }
   return outputs;
 }
 
 OnnxModel::OnnxModel(const fs::path& file, ModelSignature expected, const OnnxModelOptions& options)
+    : OnnxModel(file, std::vector<ModelSignature>{std::move(expected)}, options) {}
+
+OnnxModel::OnnxModel(const fs::path& file, std::vector<ModelSignature> alternatives,
+                     const OnnxModelOptions& options)
     : impl_(std::make_unique<Impl>()) {
   options.validate();
+  if (alternatives.empty()) throw InputError(InputLocation(file), "no signature to check against");
   impl_->file = file;
-  impl_->signature = std::move(expected);
   impl_->options = options;
   impl_->load();
-  impl_->checkSignature();
+  impl_->checkSignature(alternatives);
 }
 
 OnnxModel::~OnnxModel() = default;

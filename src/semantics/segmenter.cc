@@ -10,7 +10,9 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/semantics/dataset_segmenter.h"
+#include "superdyna/semantics/id_png_segmenter.h"
 #include "superdyna/semantics/mask_perturbation.h"
+#include "superdyna/semantics/maskrcnn_segmenter.h"
 #include "superdyna/semantics/yolo_segmenter.h"
 
 namespace superdyna::semantics {
@@ -154,14 +156,29 @@ void YoloOptions::validate() const {
   }
 }
 
-void SegmenterOptions::validate() const {
-  if (segmenter != "none" && segmenter != "dataset" && segmenter != "yolo") {
-    throw OptionError("semantics.segmenter",
-                      fmt::format("expected none, dataset or yolo, got '{}'", segmenter));
+void MaskRcnnOptions::validate() const {
+  if (!(score_threshold > 0.0 && score_threshold < 1.0)) {
+    throw OptionError("semantics.maskrcnn_score_threshold", "must be in (0, 1)");
   }
-  if (dataset_format != "masks" && dataset_format != "color") {
+  if (!(mask_threshold > 0.0 && mask_threshold < 1.0)) {
+    throw OptionError("semantics.maskrcnn_mask_threshold", "must be in (0, 1)");
+  }
+  if (min_area_px < 1) throw OptionError("semantics.maskrcnn_min_area_px", "must be >= 1");
+  if (max_detections < 1) throw OptionError("semantics.maskrcnn_max_detections", "must be >= 1");
+  if (inference_threads < 1) {
+    throw OptionError("semantics.maskrcnn_inference_threads", "must be >= 1");
+  }
+}
+
+void SegmenterOptions::validate() const {
+  if (segmenter != "none" && segmenter != "dataset" && segmenter != "yolo" &&
+      segmenter != "maskrcnn") {
+    throw OptionError("semantics.segmenter",
+                      fmt::format("expected none, dataset, yolo or maskrcnn, got '{}'", segmenter));
+  }
+  if (dataset_format != "masks" && dataset_format != "color" && dataset_format != "id_png") {
     throw OptionError("semantics.dataset_format",
-                      fmt::format("expected masks or color, got '{}'", dataset_format));
+                      fmt::format("expected masks, color or id_png, got '{}'", dataset_format));
   }
   if (right_labels != "auto" && right_labels != "segment" && right_labels != "left") {
     throw OptionError("semantics.right_labels",
@@ -172,7 +189,12 @@ void SegmenterOptions::validate() const {
   if (every_n_frames < 1) throw OptionError("semantics.every_n_frames", "must be >= 1");
   propagation.validate();
   yolo.validate();
+  maskrcnn.validate();
   taxonomy.validate();
+}
+
+bool SegmenterOptions::idsNameObjects() const {
+  return segmenter == "dataset" && (dataset_format != "id_png" || id_png_tracked_ids);
 }
 
 bool SegmenterOptions::segmentsRightImage(const Segmenter& backend) const {
@@ -183,10 +205,14 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
                                          const std::filesystem::path& dataset) {
   options.validate();
   std::unique_ptr<Segmenter> segmenter;
-  if (options.segmenter == "dataset") {
+  if (options.segmenter == "dataset" && options.dataset_format == "id_png") {
+    segmenter = std::make_unique<IdPngSegmenter>(options);
+  } else if (options.segmenter == "dataset") {
     segmenter = std::make_unique<DatasetSegmenter>(dataset, options);
   } else if (options.segmenter == "yolo") {
     segmenter = std::make_unique<YoloSegmenter>(options.yolo, options.taxonomy);
+  } else if (options.segmenter == "maskrcnn") {
+    segmenter = std::make_unique<MaskRcnnSegmenter>(options.maskrcnn, options.taxonomy);
   } else {
     return nullptr;
   }

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "superdyna/core/error.h"
+#include "superdyna/semantics/instance_assembly.h"
 
 namespace superdyna::semantics {
 
@@ -46,34 +47,11 @@ std::vector<double> maskProbabilities(const YoloDetection& detection, const floa
   return logits;
 }
 
-/// Bilinear sample of a w x h grid at continuous index coordinates (x, y), clamped.
-double sampleBilinear(const std::vector<double>& grid, int w, int h, double x, double y) {
-  const double fx0 = std::floor(x), fy0 = std::floor(y);
-  const double ax = x - fx0, ay = y - fy0;
-  const auto clampTo = [](double v, int n) { return std::clamp(static_cast<int>(v), 0, n - 1); };
-  const int x0 = clampTo(fx0, w), x1 = clampTo(fx0 + 1, w);
-  const int y0 = clampTo(fy0, h), y1 = clampTo(fy0 + 1, h);
-  const auto at = [&](int r, int c) {
-    return grid[static_cast<std::size_t>(r) * static_cast<std::size_t>(w) +
-                static_cast<std::size_t>(c)];
-  };
-  return (1 - ay) * ((1 - ax) * at(y0, x0) + ax * at(y0, x1)) +
-         ay * ((1 - ax) * at(y1, x0) + ax * at(y1, x1));
-}
-
 /// The detection box in image pixels, clipped to the image.
 cv::Rect imageBox(const YoloDetection& d, const Letterbox& letterbox, cv::Size image) {
-  const auto toX = [&](double u) {
-    return std::clamp((u - letterbox.left) / letterbox.scale, 0.0, double(image.width));
-  };
-  const auto toY = [&](double v) {
-    return std::clamp((v - letterbox.top) / letterbox.scale, 0.0, double(image.height));
-  };
-  const int x0 = static_cast<int>(std::floor(toX(d.x1)));
-  const int y0 = static_cast<int>(std::floor(toY(d.y1)));
-  const int x1 = static_cast<int>(std::ceil(toX(d.x2)));
-  const int y1 = static_cast<int>(std::ceil(toY(d.y2)));
-  return cv::Rect(x0, y0, std::max(0, x1 - x0), std::max(0, y1 - y0));
+  const auto toX = [&](double u) { return (u - letterbox.left) / letterbox.scale; };
+  const auto toY = [&](double v) { return (v - letterbox.top) / letterbox.scale; };
+  return pixelBox(toX(d.x1), toY(d.y1), toX(d.x2), toY(d.y2), image);
 }
 
 }  // namespace
@@ -212,25 +190,18 @@ Segmentation decodeSegmentation(const YoloOutputs& outputs, const Letterbox& let
                                      options.score_threshold),
                     options.nms_iou, options.max_detections);
 
-  Segmentation segmentation;
-  segmentation.ids = cv::Mat(image, CV_16UC1, cv::Scalar(0));
+  InstanceAssembler assembler(image, options.min_area_px);
   for (const YoloDetection& d : detections) {
-    const cv::Mat mask = detectionMask(d, outputs.protos, outputs.proto_h, outputs.proto_w,
-                                       letterbox, image, options.mask_threshold);
-    const cv::Mat taken = mask & (segmentation.ids == 0);
-    const int area = cv::countNonZero(taken);
-    if (area < options.min_area_px) continue;
     Instance instance;
-    instance.id = static_cast<int>(segmentation.instances.size()) + 1;
     instance.label = labels[static_cast<std::size_t>(d.class_index)];
     instance.class_id = taxonomy.classOf(instance.label);
     instance.score = d.score;
     instance.box = imageBox(d, letterbox, image);
-    instance.area_px = area;
-    segmentation.ids.setTo(instance.id, taken);
-    segmentation.instances.push_back(std::move(instance));
+    assembler.add(std::move(instance),
+                  detectionMask(d, outputs.protos, outputs.proto_h, outputs.proto_w, letterbox,
+                                image, options.mask_threshold));
   }
-  return segmentation;
+  return assembler.segmentation();
 }
 
 std::vector<std::string> parseUltralyticsNames(const std::string& text) {

@@ -188,6 +188,10 @@ semantics:
   dataset_format: color
   color_table: "rgb_ids.txt"
   movable_ids: "vehicle_ids_city_day.txt"
+  id_png_folder: "detectron2/left"
+  id_png_folder_right: "detectron2/right"
+  id_png_classes: "detectron2/classes.csv"
+  id_png_tracked_ids: true
   right_labels: left
   mask_dilate: 2
   mask_erode: 1
@@ -206,6 +210,12 @@ semantics:
   yolo_min_area_px: 50
   yolo_max_detections: 30
   yolo_inference_threads: 1
+  maskrcnn_model: "maskrcnn_mobilenet.onnx"
+  maskrcnn_score_threshold: 0.7
+  maskrcnn_mask_threshold: 0.45
+  maskrcnn_min_area_px: 60
+  maskrcnn_max_detections: 40
+  maskrcnn_inference_threads: 1
   pedestrian_labels: "person,rider"
   vehicle_labels: "car,truck"
   other_movable_labels: "dog"
@@ -267,7 +277,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 206u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 216u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

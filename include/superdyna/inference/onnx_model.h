@@ -44,7 +44,8 @@ struct TensorView {
   std::vector<std::int64_t> shape;
 };
 
-/// A dense float32 tensor in row-major (C) order, owning its data.
+/// A dense tensor in row-major (C) order, owning its data as float32: int32 and int64 outputs
+/// (a detector's class ids) are converted exactly (run() refuses values beyond 2^24).
 struct Tensor {
   std::vector<std::int64_t> shape;
   std::vector<float> data;
@@ -66,6 +67,11 @@ class OnnxModel {
   /// missing; the model has outputs ..." etc.) or OptionError.
   OnnxModel(const std::filesystem::path& file, ModelSignature expected,
             const OnnxModelOptions& options = {});
+  /// As above for a network exported in more than one layout (an image input of rank 3 or 4):
+  /// the first signature the model fits is signature(); InputError listing each distinct problem
+  /// when it fits none.
+  OnnxModel(const std::filesystem::path& file, std::vector<ModelSignature> alternatives,
+            const OnnxModelOptions& options = {});
   ~OnnxModel();
   OnnxModel(OnnxModel&&) noexcept;
   OnnxModel& operator=(OnnxModel&&) noexcept;
@@ -73,8 +79,9 @@ class OnnxModel {
   OnnxModel& operator=(const OnnxModel&) = delete;
 
   /// Runs the model: `inputs` in the order of signature().inputs, outputs in the order of
-  /// signature().outputs. Input and output shapes are checked against the signature (InputError
-  /// naming the tensor). Each call is timed (lastRunMs(), meanRunMs()).
+  /// signature().outputs (float32, or int32 / int64 where the signature says so). Input and output
+  /// shapes are checked against the signature (InputError naming the tensor). Each call is timed
+  /// (lastRunMs(), meanRunMs()).
   std::vector<Tensor> run(const std::vector<TensorView>& inputs);
 
   /// Runs the model `runs` times on zero-filled inputs of the given shapes without counting the

@@ -5,8 +5,10 @@
 // COCO name, a dataset class), a score and a box. Backends:
 //   - dataset: a sequence's own segmentation — the simulator's 16-bit instance masks
 //     (mav0/camN/mask/) or VIODE-style colour images (mav0/camN/segmentation/, colour -> object id
-//     through a colour table, movable objects from an id list);
-//   - yolo: an Ultralytics YOLOv8-seg / YOLO11-seg ONNX export (yolo_segmenter.h).
+//     through a colour table, movable objects from an id list), or user-made 16-bit id PNGs of
+//     any dataset with a class table (id_png_segmenter.h);
+//   - yolo: an Ultralytics YOLOv8-seg / YOLO11-seg ONNX export (yolo_segmenter.h);
+//   - maskrcnn: torchvision's Mask R-CNN ONNX export (maskrcnn_segmenter.h).
 // makeSegmenter() builds the one SegmenterOptions chooses, wrapped by the mask perturbation
 // (mask_perturbation.h) when it is asked for.
 
@@ -98,12 +100,38 @@ struct YoloOptions {
   bool operator==(const YoloOptions&) const = default;
 };
 
+/// The maskrcnn backend (maskrcnn_segmenter.h): torchvision's maskrcnn_resnet50_fpn exported to
+/// ONNX (scripts/export_maskrcnn_onnx.py). The network resizes and runs NMS itself.
+struct MaskRcnnOptions {
+  /// ONNX file: a bare name is looked up in $SUPERDYNA_MODEL_DIR, then models/.
+  std::string model = "maskrcnn_resnet50_fpn.onnx";
+  /// Minimum detection score (torchvision keeps detections above 0.05; 0.5 is its examples' cut).
+  double score_threshold = 0.5;
+  /// A pixel is on the instance when its soft mask value exceeds this (torchvision's 0.5).
+  double mask_threshold = 0.5;
+  /// Instances with fewer mask pixels (after overlaps went to better-scored ones) are dropped.
+  int min_area_px = 100;
+  int max_detections = 100;  ///< Best scores first, among those of a wanted class.
+  int inference_threads = 2;
+  void validate() const;
+  bool operator==(const MaskRcnnOptions&) const = default;
+};
+
 struct SegmenterOptions {
-  /// "none" | "dataset" | "yolo".
+  /// "none" | "dataset" | "yolo" | "maskrcnn".
   std::string segmenter = "none";
-  /// Dataset backend: "masks" (mav0/camN/mask/ 16-bit ids, classes from mav0/instances.csv) or
-  /// "color" (mav0/camN/segmentation/ colour images).
+  /// Dataset backend: "masks" (mav0/camN/mask/ 16-bit ids, classes from mav0/instances.csv),
+  /// "color" (mav0/camN/segmentation/ colour images) or "id_png" (user-made 16-bit id PNGs named
+  /// <t_ns>.png in id_png_folder, with a class table; id_png_segmenter.h).
   std::string dataset_format = "masks";
+  /// id_png: the left camera's folder of id images (required) and the right camera's ("" = none).
+  std::string id_png_folder;
+  std::string id_png_folder_right;
+  /// id_png: the class table ("id,label" or "t_ns,id,label" rows); "" = classes.csv in each folder.
+  std::string id_png_classes;
+  /// id_png: whether an id names the same object in every frame (a tracker's output); per-image
+  /// tools (Detectron2, SAM) number each image afresh.
+  bool id_png_tracked_ids = false;
   /// Colour backend: "id,r,g,b" rows (VIODE's rgb_ids.txt); "" = mav0/segmentation_colors.csv
   /// (written by `superdyna simulate --semantic-color`).
   std::string color_table;
@@ -116,6 +144,9 @@ struct SegmenterOptions {
   /// exact and cheap), "left" for networks (half the cost; a network's left and right masks
   /// disagree at their borders, which refused 4.6 % of the stereo matches on a simulated street).
   std::string right_labels = "auto";
+  /// Whether the segmenter's instance ids name objects across frames (dataset masks and colour
+  /// images, tracked id PNGs): only then can map points be culled by instance.
+  bool idsNameObjects() const;
   /// Whether the right image is segmented by `backend` under these options.
   bool segmentsRightImage(const Segmenter& backend) const;
   /// Iterations of a 3x3 square dilation / erosion of every instance mask (mask_perturbation.h).
@@ -127,6 +158,7 @@ struct SegmenterOptions {
   int every_n_frames = 1;
   PropagationOptions propagation;
   YoloOptions yolo;
+  MaskRcnnOptions maskrcnn;
   Taxonomy taxonomy;
   void validate() const;  ///< OptionError naming the first invalid field.
   bool operator==(const SegmenterOptions&) const = default;
