@@ -29,12 +29,6 @@ Eigen::Vector2d medianMotion(const std::vector<Eigen::Vector2d>& motions) {
   return {medianOf(std::move(dx)), medianOf(std::move(dy))};
 }
 
-int idAt(const cv::Mat& ids, const Eigen::Vector2d& pixel) {
-  const int col = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, ids.cols - 1);
-  const int row = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, ids.rows - 1);
-  return ids.at<std::uint16_t>(row, col);
-}
-
 Eigen::Vector2i rounded(const Eigen::Vector2d& v) {
   return {static_cast<int>(std::lround(v.x())), static_cast<int>(std::lround(v.y()))};
 }
@@ -94,7 +88,7 @@ sensors::InstanceMasks MaskPropagator::propagate(const features::FeatureSet& lef
     const Eigen::Vector2d& from = reference_features_.keypoints[m.query].pixel;
     const Eigen::Vector2d motion = left.keypoints[m.train].pixel - from;
     all.push_back(motion);
-    const int id = idAt(reference.cam0, from);
+    const int id = sensors::idAtPixel(reference.cam0, from);
     if (id != 0) of_instance[id].push_back(motion);
   }
   const Eigen::Vector2d common = all.empty() ? last_motion_ : medianMotion(all);

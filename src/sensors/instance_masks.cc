@@ -1,5 +1,9 @@
 #include "superdyna/sensors/instance_masks.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
 namespace superdyna::sensors {
 
 std::string_view instanceClassName(int class_id) {
@@ -15,6 +19,12 @@ std::string_view instanceClassName(int class_id) {
     default:
       return "unknown";
   }
+}
+
+int idAtPixel(const cv::Mat& ids, const Eigen::Vector2d& pixel) {
+  const int col = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, ids.cols - 1);
+  const int row = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, ids.rows - 1);
+  return ids.at<std::uint16_t>(row, col);
 }
 
 int InstanceMasks::classOf(int instance_id) const {

@@ -268,7 +268,6 @@ tracking::Frame System::buildSegmentedFrame(const io::FrameBundle& bundle,
       }
       return masks;
     });
-    if (fresh) segment_thread_->wait();  // returns at once unless the bundle had masks
   } catch (...) {
     // The job refers to `bundle` and `masks`: let it finish before they go.
     try {

@@ -73,12 +73,6 @@ double instanceBorderRadiusPx(const features::Keypoint& keypoint) {
 
 namespace {
 
-int idAt(const cv::Mat& ids, const Eigen::Vector2d& pixel) {
-  const int col = std::clamp(static_cast<int>(std::lround(pixel.x())), 0, ids.cols - 1);
-  const int row = std::clamp(static_cast<int>(std::lround(pixel.y())), 0, ids.rows - 1);
-  return ids.at<std::uint16_t>(row, col);
-}
-
 /// Whether another id than `id` lies on the square of half-side `radius` around `pixel` (its
 /// corners and edge midpoints, within the image).
 bool otherIdAround(const cv::Mat& ids, const Eigen::Vector2d& pixel, double radius, int id) {
@@ -87,7 +81,7 @@ bool otherIdAround(const cv::Mat& ids, const Eigen::Vector2d& pixel, double radi
       if (dx == 0 && dy == 0) continue;
       const Eigen::Vector2d p = pixel + radius * Eigen::Vector2d(dx, dy);
       if (p.x() < 0.0 || p.y() < 0.0 || p.x() > ids.cols - 1 || p.y() > ids.rows - 1) continue;
-      if (idAt(ids, p) != id) return true;
+      if (sensors::idAtPixel(ids, p) != id) return true;
     }
   }
   return false;
@@ -99,7 +93,7 @@ void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& 
                     std::vector<features::Keypoint>& keypoints) {
   if (instance_mask.empty()) return;
   for (features::Keypoint& k : keypoints) {
-    k.instance_id = idAt(instance_mask, k.pixel);
+    k.instance_id = sensors::idAtPixel(instance_mask, k.pixel);
     k.class_id = masks.classOf(k.instance_id);
     k.on_instance_border =
         otherIdAround(instance_mask, k.pixel, instanceBorderRadiusPx(k), k.instance_id);

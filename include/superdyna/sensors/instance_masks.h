@@ -4,6 +4,7 @@
 // moving-object test): a 16-bit instance id per pixel and the semantic class of each instance.
 // It lives below the readers so that no stage above depends on a particular reader.
 
+#include <Eigen/Core>
 #include <map>
 #include <opencv2/core.hpp>
 #include <string_view>
@@ -19,6 +20,10 @@ inline constexpr int kInstanceClassOtherMovable = 3;  ///< "other_movable" (anim
 
 /// "background" | "vehicle" | "pedestrian" | "other_movable"; "unknown" for other ids.
 std::string_view instanceClassName(int class_id);
+
+/// The id of a CV_16UC1 instance-id image at a pixel position, rounded to the nearest pixel and
+/// clamped to the image.
+int idAtPixel(const cv::Mat& ids, const Eigen::Vector2d& pixel);
 
 /// Instance segmentation of one (stereo) frame.
 struct InstanceMasks {
