@@ -13,9 +13,10 @@
 # parsers, also run by scripts/test.sh), segmentation (links semantics: features and ONNX
 # Runtime), options (links the whole SLAM system: slow to build, only when named).
 # Environment: BUILD_DIR (default build-fuzz), JOBS (default 1), FUZZ_SEED (default 1; 0 = random),
-#              FUZZ_TIMEOUT (seconds per input counted as a hang, default 10).
+#              FUZZ_TIMEOUT (seconds per input counted as a hang, default 10), FUZZ_MAX_SECONDS
+#              (with -runs=N: stop a target after this long even if it has not made N runs).
 set -euo pipefail
-[ $# -ge 1 ] || { sed -n '2,17p' "$0"; exit 2; }
+[ $# -ge 1 ] || { sed -n '2,18p' "$0"; exit 2; }
 
 repo_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build_dir=${BUILD_DIR:-"$repo_dir/build-fuzz"}
@@ -23,9 +24,10 @@ jobs=${JOBS:-1}
 limit=$1
 shift
 case "$limit" in
-  -runs=*) limit_flag=$limit ;;
+  -runs=*) limit_flags=("$limit")
+    [ -z "${FUZZ_MAX_SECONDS:-}" ] || limit_flags+=("-max_total_time=$FUZZ_MAX_SECONDS") ;;
   *[!0-9]* | "") echo "error: '$limit' is neither SECONDS nor -runs=N" >&2; exit 2 ;;
-  *) limit_flag=-max_total_time=$limit ;;
+  *) limit_flags=("-max_total_time=$limit") ;;
 esac
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(euroc_csv euroc_sensor_yaml kitti trajectory instance_mask
@@ -56,7 +58,7 @@ run_target() {
   local target=$1 corpus="$build_dir/corpus/$1" log="$build_dir/logs/$1.log"
   mkdir -p "$corpus" "$build_dir/artifacts" "$build_dir/logs"
   local start=$SECONDS status=0
-  TMPDIR=$(scratch_dir) nice -n 10 "$build_dir/bin/superdyna_fuzz_$target" "$limit_flag" \
+  TMPDIR=$(scratch_dir) nice -n 10 "$build_dir/bin/superdyna_fuzz_$target" "${limit_flags[@]}" \
     -seed="${FUZZ_SEED:-1}" -timeout="${FUZZ_TIMEOUT:-10}" -print_final_stats=1 \
     -artifact_prefix="$build_dir/artifacts/$target-" "$corpus" "$repo_dir/fuzz/corpus/$target" \
     >"$log" 2>&1 || status=$?
