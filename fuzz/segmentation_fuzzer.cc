@@ -24,7 +24,7 @@ namespace fs = std::filesystem;
 constexpr const char* kColourTable = "id,r,g,b\n0,0,0,0\n1,255,0,0\n2,0,255,0\n7,0,0,255\n";
 constexpr const char* kMovableIds = "id, name\n1, car\n7, truck\n";
 /// The table's colours (BGR) and one it does not list.
-constexpr cv::Vec3b kPalette[] = {{0, 0, 0}, {0, 0, 255}, {0, 255, 0}, {255, 0, 0}, {9, 9, 9}};
+const cv::Vec3b kPalette[] = {{0, 0, 0}, {0, 0, 255}, {0, 255, 0}, {255, 0, 0}, {9, 9, 9}};
 
 struct Sequence {
   fs::path mav0;
