@@ -3,7 +3,8 @@
 file(GLOB_RECURSE files
      ${SOURCE_DIR}/include/*.h ${SOURCE_DIR}/src/*.h ${SOURCE_DIR}/src/*.cc
      ${SOURCE_DIR}/apps/*.h ${SOURCE_DIR}/apps/*.cc ${SOURCE_DIR}/tests/*.h
-     ${SOURCE_DIR}/tests/*.cc ${SOURCE_DIR}/bench/*.h ${SOURCE_DIR}/bench/*.cc)
+     ${SOURCE_DIR}/tests/*.cc ${SOURCE_DIR}/bench/*.h ${SOURCE_DIR}/bench/*.cc
+     ${SOURCE_DIR}/fuzz/*.h ${SOURCE_DIR}/fuzz/*.cc)
 execute_process(COMMAND ${CLANG_FORMAT} --dry-run --Werror ${files} RESULT_VARIABLE result
                 ERROR_VARIABLE diagnostics)
 list(LENGTH files count)

@@ -21,6 +21,7 @@ packages=(
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev libboost-math-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfaiss-dev libcereal-dev
   clang-format python3 python3-numpy python3-onnx
+  clang libfuzzer-14-dev  # bench/fuzz.sh (libFuzzer targets, run briefly by scripts/test.sh)
 )
 
 missing_packages() {

@@ -13,3 +13,10 @@ if [ -z "${SUPERDYNA_WERROR:-}" ] && [ ! -f "$build_dir/CMakeCache.txt" ]; then
 fi
 "$repo_dir/scripts/setup.sh"
 ctest --test-dir "$build_dir" --output-on-failure -j "${JOBS:-$(nproc)}" --timeout 1200
+# Brief fuzzing of the io and map parsers (bench/fuzz.sh: a clang ASan/UBSan build of those
+# modules only, in build-fuzz/): SUPERDYNA_FUZZ_SECONDS per target, 0 skips it.
+fuzz_seconds=${SUPERDYNA_FUZZ_SECONDS:-15}
+if [ "$fuzz_seconds" != 0 ]; then
+  JOBS=${JOBS:-$(nproc)} "$repo_dir/bench/fuzz.sh" "$fuzz_seconds" euroc_csv euroc_sensor_yaml kitti trajectory \
+    instance_mask map_file
+fi

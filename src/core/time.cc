@@ -15,6 +15,9 @@ TimeNs secondsToNs(double seconds) {
 
 namespace {
 
+/// The most whole seconds whose nanoseconds, with any fraction and its rounding, fit int64.
+constexpr TimeNs kMaxWholeSeconds = std::numeric_limits<TimeNs>::max() / kNsPerSecond - 1;
+
 bool isDigits(std::string_view s) {
   for (char c : s) {
     if (c < '0' || c > '9') return false;
@@ -51,6 +54,7 @@ std::optional<TimeNs> parseSecondsToNs(std::string_view text) {
   TimeNs seconds = 0;
   for (char c : whole)
     seconds = seconds * 10 + (c - '0');
+  if (seconds > kMaxWholeSeconds) return std::nullopt;
   TimeNs nanos = 0;
   for (std::size_t i = 0; i < 9; ++i) {
     nanos = nanos * 10 + (i < frac.size() ? frac[i] - '0' : 0);

@@ -3,7 +3,11 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
+#include <string_view>
+#include <vector>
 
 #include "superdyna/io/text_table.h"
 #include "superdyna/io/yaml_file.h"
@@ -212,6 +216,19 @@ cv::Mat loadImage(const fs::path& file, const CameraCalibration& calibration) {
                                  image.rows, calibration.width, calibration.height,
                                  calibration.name.empty() ? "the calibration" : calibration.name));
   }
+  return image;
+}
+
+cv::Mat decodePngFile(const fs::path& file, int flags) {
+  static constexpr std::string_view kPngSignature = "\x89PNG\r\n\x1a\n";
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(InputLocation{file}, "cannot open the image file");
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+  if (!std::string_view(bytes.data(), bytes.size()).starts_with(kPngSignature))
+    throw InputError(InputLocation{file}, "not a PNG image (no PNG signature at its start)");
+  const cv::Mat image = cv::imdecode(bytes, flags);
+  if (image.empty()) throw InputError(InputLocation{file}, "cannot decode the PNG image");
   return image;
 }
 

@@ -394,8 +394,7 @@ EurocDataset EurocDataset::open(const fs::path& path) {
 cv::Mat EurocDataset::loadInstanceMask(const fs::path& image, cv::Size size) const {
   const fs::path file = image.parent_path().parent_path() / "mask" / image.filename();
   if (!fs::is_regular_file(file)) throw InputError(InputLocation{file}, "mask file does not exist");
-  const cv::Mat mask = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  if (mask.empty()) throw InputError(InputLocation{file}, "cannot decode the mask image");
+  const cv::Mat mask = decodePngFile(file, cv::IMREAD_UNCHANGED);
   if (mask.type() != CV_16UC1 || mask.size() != size) {
     throw InputError(InputLocation{file},
                      fmt::format("expected a 16-bit single-channel {}x{} mask, got {}x{} of "

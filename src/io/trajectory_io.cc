@@ -60,10 +60,19 @@ bool isMetadataLine(const TextRow& row) {
          !startsWithNumber(row);
 }
 
+/// Segment numbers are whole numbers that fit an int (OpenLORIS numbers them 1, 2, ...).
+constexpr double kMaxSegmentNumber = 1e9;
+
 std::optional<int> segmentNumber(const TextRow& row, const fs::path& file) {
   if (row.fields.front() != "seq:") return std::nullopt;
   requireFieldCount(row, file, 2, 2);
-  return static_cast<int>(parseFiniteDouble(row.fields[1], row.at(file, "seq")));
+  const double number = parseFiniteDouble(row.fields[1], row.at(file, "seq"));
+  if (number != std::round(number) || std::abs(number) > kMaxSegmentNumber) {
+    throw InputError(row.at(file, "seq"),
+                     fmt::format("'{}' is not a segment number (a whole number up to {:g})",
+                                 row.fields[1], kMaxSegmentNumber));
+  }
+  return static_cast<int>(number);
 }
 
 Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment) {

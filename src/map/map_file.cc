@@ -14,12 +14,61 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <type_traits>
 
 #include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
 
 // cereal finds these by argument-dependent lookup through its archive types.
 namespace cereal {
+
+/// Elements of a vector or characters of a string read at a time (see the loads below).
+inline constexpr size_type kLoadChunk = 4096;
+
+/// Vectors are written as cereal writes them (length, then the elements), but read as they
+/// arrive: cereal's own load resizes to the stored length first, so a damaged or crafted length
+/// (found by fuzz/map_file_fuzzer.cc) allocated up to the whole address space before the payload
+/// ran out. Growing with the elements read bounds the memory by the payload's size.
+template <class T>
+void load(PortableBinaryInputArchive& ar, std::vector<T>& vector) {
+  size_type size = 0;
+  ar(make_size_tag(size));
+  vector.clear();
+  if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+    while (vector.size() < size) {
+      const std::size_t first = vector.size();
+      const std::size_t count = std::min<size_type>(size - first, kLoadChunk);
+      vector.resize(first + count);
+      ar(binary_data(vector.data() + first, count * sizeof(T)));
+    }
+  } else {
+    for (size_type i = 0; i < size; ++i)
+      ar(vector.emplace_back());
+  }
+}
+
+/// Booleans (MapPoint::bad, whether an optional holds a value) are one byte, 0 or 1; cereal copies
+/// the byte into the bool, and any other value (found by fuzz/map_file_fuzzer.cc) made a bool of
+/// no valid value (undefined behaviour) instead of an error.
+inline void load(PortableBinaryInputArchive& ar, bool& value) {
+  std::uint8_t byte = 0;
+  ar(byte);
+  if (byte > 1) throw superdyna::InputError(fmt::format("boolean stored as byte {}", byte));
+  value = byte == 1;
+}
+
+/// Strings likewise: the characters are read in chunks, not into a buffer of the stored length.
+inline void load(PortableBinaryInputArchive& ar, std::string& text) {
+  size_type size = 0;
+  ar(make_size_tag(size));
+  text.clear();
+  while (text.size() < size) {
+    const std::size_t first = text.size();
+    const std::size_t count = std::min<size_type>(size - first, kLoadChunk);
+    text.resize(first + count);
+    ar(binary_data(text.data() + first, count));
+  }
+}
 
 template <class Archive>
 void serialize(Archive& ar, Eigen::Vector2d& v) {

@@ -27,6 +27,10 @@ TEST(TimeTest, RejectsMalformedText) {
   EXPECT_FALSE(parseSecondsToNs("nan"));
   EXPECT_FALSE(parseSecondsToNs("1e400"));
   EXPECT_FALSE(parseSecondsToNs("99999999999"));
+  // Ten digits that overflow int64 nanoseconds (signed overflow before; fuzz/trajectory_fuzzer).
+  EXPECT_FALSE(parseSecondsToNs("9999999999"));
+  EXPECT_FALSE(parseSecondsToNs("-9223372036.5"));
+  EXPECT_EQ(parseSecondsToNs("9223372035.999999999"), 9223372035999999999LL);
 }
 
 TEST(TimeTest, FormatsWithNineDecimalsAndRoundTrips) {

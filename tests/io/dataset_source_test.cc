@@ -166,6 +166,33 @@ TEST(DatasetSourceTest, EurocMaskProblemsNameTheFile) {
   test::expectError([&] { EurocDataset::open(path); }, {"instances.csv", "unknown class 'truck'"});
 }
 
+/// A damaged file that OpenCV's imread hands to GDCM's DICOM reader, which asserts (abort) on it:
+/// found by fuzzing instance masks (fuzz/instance_mask_fuzzer.cc).
+const std::string kDicomLikeBytes(
+    "\x28\x4f\x44\x4c\x5f\x56\x45\x52\x53\x49\x4f\x4e\x5f\x49\x44\xff\xff\xff\xff\xff\xff\xff"
+    "\xff\xff\xff\xff\xdf\xff\xff\xff\xff\x65\x5f\x53\x65\x72\x76\x69\x63\x65\xff\xff\xff\xff"
+    "\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xf7\xff\xff\xff\xff\xff\xff\xff"
+    "\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xff\xdf\xff\xff\xff\xff\xff\xff\xff"
+    "\xff\xff\xff\xff\xff\xff\xdf\xff\xff\xff\xff\xff\xff\xff\xff\xff\x00\x00\x00\x00\x44\x3a"
+    "\x00\x00\x54\xff\xff\xff\xdf\xff\xff\xff\x00\x00\x00\x44\x54\x45\x44\x00\x00\x44\x49\x43"
+    "\x4d\x02\x00\xff\xff\xff\xff\xff\x00\x00\x3a\x00\x00\x00\x00\x44\x54\x45\x44\x00\x00\x00",
+    154);
+
+TEST(DatasetSourceTest, EurocMasksThatAreNotPngFilesAreErrorsNotAborts) {
+  SUPERDYNA_REQUIRE_SHARED(shared, kEuroc);
+  const test::ScratchDir dir("dataset_source_dicom_mask");
+  const fs::path path = eurocWithMasks(shared, dir);
+  const EurocDataset dataset = EurocDataset::open(path);
+  const fs::path image = dataset.stereoFrames().front().cam0;
+  const fs::path mask = image.parent_path().parent_path() / "mask" / image.filename();
+  test::writeFile(mask, kDicomLikeBytes);
+  test::expectError([&] { dataset.loadInstanceMask(image, cv::Size(752, 480)); },
+                    {mask.filename().string(), "not a PNG image"});
+  test::writeFile(mask, "\x89PNG\r\n\x1a\n truncated");
+  test::expectError([&] { dataset.loadInstanceMask(image, cv::Size(752, 480)); },
+                    {mask.filename().string(), "cannot decode the PNG image"});
+}
+
 TEST(DatasetSourceTest, EurocUnlabelledInstancesAreListedButNeverInTheMasks) {
   SUPERDYNA_REQUIRE_SHARED(shared, kEuroc);
   const test::ScratchDir dir("dataset_source_unlabelled");

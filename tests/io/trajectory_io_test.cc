@@ -61,6 +61,23 @@ TEST(TrajectoryIoTest, SkipsHeaderLinesBeforeData) {
   EXPECT_DOUBLE_EQ(t[1].T_w_x.t.x(), -125.0);
 }
 
+TEST(TrajectoryIoTest, RejectsSegmentNumbersThatAreNotWholeNumbers) {
+  // Found by fuzzing (fuzz/trajectory_fuzzer.cc): a huge "seq:" number was converted to int
+  // (undefined behaviour) instead of being reported.
+  ScratchDir dir("traj_segment_number");
+  const auto file = dir / "segments.txt";
+  const std::string row = "1563003603.73554158 -125.1 -15.1 0 0 0 0.640510 0.767950\n";
+  for (const std::string number : {"2.66667e+86", "1.5", "-3e9"}) {
+    writeFile(file, "scene: market\nseq: " + number + "\n" + row);
+    test::expectError([&] { readTrajectory(file); },
+                      {"segments.txt:2 [seq]", "not a segment number"});
+  }
+  writeFile(file, "scene: market\nseq: 2\n" + row);
+  TrajectoryReadOptions options;
+  options.segment = 2;
+  EXPECT_EQ(readTrajectory(file, options).size(), 1u);
+}
+
 TEST(TrajectoryIoTest, ReadsOpenLorisSegments) {
   SUPERDYNA_REQUIRE_SHARED(market, "data/trajectories/openloris/market_1.txt");
   const Trajectory all = readTrajectory(market);

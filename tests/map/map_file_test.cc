@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <boost/crc.hpp>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -214,6 +216,54 @@ TEST(MapFile, FuzzedFilesNeverCrash) {
     if (!parseError(damaged).empty()) ++rejected;
   }
   EXPECT_GE(rejected, 295);  // a flip may rewrite a byte with its own value
+}
+
+/// `bytes` with another payload, under a header whose size and CRC-32 match it (the layout of
+/// map_file.h: magic, endianness, version, descriptor type, size at byte 14, CRC at byte 22).
+std::string withValidHeader(const std::string& bytes, const std::string& payload) {
+  constexpr std::size_t kHeaderBytes = 26;
+  std::string file = bytes.substr(0, kHeaderBytes) + payload;
+  boost::crc_32_type crc;
+  crc.process_bytes(payload.data(), payload.size());
+  const auto put = [&](std::size_t at, std::uint64_t value, int count) {
+    for (int i = 0; i < count; ++i)
+      file[at + static_cast<std::size_t>(i)] = static_cast<char>((value >> (8 * i)) & 0xFF);
+  };
+  put(14, payload.size(), 8);
+  put(22, crc.checksum(), 4);
+  return file;
+}
+
+TEST(MapFile, HugeStoredLengthsFailAtTheEndOfThePayloadWithoutAllocatingThem) {
+  // Found by fuzzing (fuzz/map_file_fuzzer.cc): with a valid checksum, a stored length was
+  // allocated before reading (here 1 TiB characters: std::bad_alloc; lengths that fit in memory
+  // were allocated and zero-filled); now the load reads as far as the payload goes.
+  const std::string bytes = savedBytes();
+  ASSERT_EQ(parseError(withValidHeader(bytes, bytes.substr(26))), "");
+  std::string payload = bytes.substr(26);
+  // The payload's cereal archive starts with its endianness byte, then the length of the first
+  // string (the feature type, "orb").
+  const std::uint64_t length = std::uint64_t{1} << 40;
+  for (int i = 0; i < 8; ++i)
+    payload[static_cast<std::size_t>(1 + i)] = static_cast<char>((length >> (8 * i)) & 0xFF);
+  const std::string error = parseError(withValidHeader(bytes, payload));
+  EXPECT_NE(error.find("corrupted payload: Failed to read"), std::string::npos) << error;
+}
+
+TEST(MapFile, BooleansOtherThanZeroOrOneAreRejected) {
+  // Found by fuzzing (fuzz/map_file_fuzzer.cc): the byte of a boolean (here: whether the IMU pose
+  // is stored) was copied into a bool whatever its value (undefined behaviour).
+  const std::unique_ptr<Map> map = makeMap();
+  MapFile file = makeMapFile(*map, orbStereoInertial(), rightOf(*map), 2);
+  const std::string with_imu = serializeMapFile(file);
+  file.identity.T_b_i.reset();
+  const std::string without_imu = serializeMapFile(file);
+  const auto flag = std::mismatch(with_imu.begin() + 26, with_imu.end(), without_imu.begin() + 26);
+  ASSERT_NE(flag.first, with_imu.end());
+  std::string payload = with_imu.substr(26);
+  payload[static_cast<std::size_t>(flag.first - with_imu.begin()) - 26] = 64;
+  const std::string error = parseError(withValidHeader(with_imu, payload));
+  EXPECT_NE(error.find("boolean stored as byte 64"), std::string::npos) << error;
 }
 
 TEST(MapFile, IdentityMismatchNamesWhatDiffers) {

@@ -103,4 +103,10 @@ struct StereoFrameRef {
 /// the calibrated resolution ("... is 640x480, expected 752x480").
 cv::Mat loadImage(const std::filesystem::path& file, const CameraCalibration& calibration);
 
+/// Decodes a PNG file (instance masks, segmentation images) with cv::imread's `flags`. Only PNG is
+/// decoded: OpenCV would try every decoder whose signature matches, and some abort the process on
+/// damaged input (GDCM's DICOM reader asserts). Throws InputError naming the file when it cannot
+/// be read, is not a PNG file or cannot be decoded.
+cv::Mat decodePngFile(const std::filesystem::path& file, int flags);
+
 }  // namespace superdyna::io
