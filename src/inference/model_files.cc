@@ -41,4 +41,12 @@ fs::path findModel(const std::string& name) {
                    "get or export each model).");
 }
 
+fs::path findModel(const std::string& name, const std::string& how_to_get) {
+  try {
+    return findModel(name);
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + "\n" + how_to_get);
+  }
+}
+
 }  // namespace superdyna::inference

@@ -38,15 +38,11 @@ inference::OnnxModel loadModel(const MaskRcnnOptions& options) {
   options.validate();
   inference::OnnxModelOptions runtime;
   runtime.intra_op_threads = options.inference_threads;
-  std::filesystem::path file;
-  try {
-    file = inference::findModel(options.model);
-  } catch (const InputError& e) {
-    throw InputError(std::string(e.what()) +
-                     "\nMask R-CNN models: export torchvision's maskrcnn_resnet50_fpn with "
-                     "scripts/export_maskrcnn_onnx.py OUT.onnx (semantics.maskrcnn_model; README, "
-                     "'Instance segmentation').");
-  }
+  const std::filesystem::path file = inference::findModel(
+      options.model,
+      "Mask R-CNN models: export torchvision's maskrcnn_resnet50_fpn with "
+      "scripts/export_maskrcnn_onnx.py OUT.onnx (semantics.maskrcnn_model; README, "
+      "'Instance segmentation').");
   return inference::OnnxModel(file, {maskRcnnSignature(false), maskRcnnSignature(true)}, runtime);
 }
 

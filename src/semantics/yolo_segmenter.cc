@@ -38,16 +38,12 @@ inference::OnnxModel loadModel(const YoloOptions& options) {
   options.validate();
   inference::OnnxModelOptions runtime;
   runtime.intra_op_threads = options.inference_threads;
-  std::filesystem::path file;
-  try {
-    file = inference::findModel(options.model);
-  } catch (const InputError& e) {
-    throw InputError(std::string(e.what()) +
-                     "\nYOLOv8-seg models: export one with Ultralytics (yolo export "
-                     "model=yolov8n-seg.pt format=onnx), or use ../shared/models/"
-                     "yolov8n-seg-int8.onnx beside the checkout (semantics.yolo_model; README, "
-                     "'Instance segmentation').");
-  }
+  const std::filesystem::path file = inference::findModel(
+      options.model,
+      "YOLOv8-seg models: export one with Ultralytics (yolo export "
+      "model=yolov8n-seg.pt format=onnx), or use ../shared/models/"
+      "yolov8n-seg-int8.onnx beside the checkout (semantics.yolo_model; README, "
+      "'Instance segmentation').");
   return inference::OnnxModel(file, yoloSignature(), runtime);
 }
 

@@ -19,5 +19,8 @@ std::vector<std::filesystem::path> modelSearchDirs();
 /// path) is used as given; a bare file name is looked up in modelSearchDirs(). Throws InputError
 /// listing every place looked at and how to get the model when it is not found.
 std::filesystem::path findModel(const std::string& name);
+/// As findModel(name); its InputError gains `how_to_get` on a line of its own (where a model of
+/// this kind comes from).
+std::filesystem::path findModel(const std::string& name, const std::string& how_to_get);
 
 }  // namespace superdyna::inference
