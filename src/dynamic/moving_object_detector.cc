@@ -181,20 +181,19 @@ std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
   search.max_l2_distance = options_.max_l2_distance;
   search.same_class_only = true;
   // Candidates of the same kind only (movable or background): the wide object search would
-  // otherwise sort through every keypoint within 120 px.
-  std::vector<int> candidates;
-  for (std::size_t j = 0; j < current.features->size(); ++j) {
-    if (isMovable(current.features->keypoints[j]) == movable)
-      candidates.push_back(static_cast<int>(j));
+  // otherwise sort through every keypoint within 120 px. Cells of half the radius keep a wide
+  // query to a few cells.
+  const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
+  std::vector<char> candidate(keypoints.size(), 0);
+  for (std::size_t j = 0; j < keypoints.size(); ++j) {
+    candidate[j] = isMovable(keypoints[j]) == movable && finite((*current.normalized)[j]);
   }
-  const features::FeatureSet train = current.features->select(candidates);
-  const features::KeypointGrid grid(train.keypoints, train.image_size);
+  const int cell_px = std::max(20, static_cast<int>(search.radius_px / 2.0));
+  const features::KeypointGrid grid(keypoints, current.features->image_size, cell_px, candidate);
   std::vector<Pair> pairs;
   for (const features::Match& match :
-       features::matchByProjection(query, predicted, train, grid, search)) {
-    const int j = candidates[static_cast<std::size_t>(match.train)];
-    if (finite((*current.normalized)[static_cast<std::size_t>(j)]))
-      pairs.push_back({match.query, j});
+       features::matchByProjection(query, predicted, *current.features, grid, search)) {
+    pairs.push_back({match.query, match.train});
   }
   return pairs;
 }

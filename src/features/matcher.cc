@@ -22,8 +22,9 @@ struct BestTwo {
   double second = kNoDistance;
   int index = -1;
 
+  /// Ties go to the lower index, so the result does not depend on the order of the offers.
   void offer(double distance, int candidate) {
-    if (distance < best) {
+    if (distance < best || (distance == best && candidate < index)) {
       second = best;
       best = distance;
       index = candidate;
@@ -66,6 +67,13 @@ void requireRatio(double ratio) {
 
 }  // namespace
 
+// The hardware population count where the CPU has one (chosen once at load time): without it
+// every 64-bit word costs a call into libgcc, 12 % of the moving-object test.
+#if defined(__x86_64__) && defined(__has_attribute)
+#if __has_attribute(target_clones)
+__attribute__((target_clones("popcnt", "default")))
+#endif
+#endif
 int hammingDistance(const std::uint8_t* a, const std::uint8_t* b, int bytes) {
   int distance = 0;
   int i = 0;
@@ -222,8 +230,16 @@ std::vector<Match> matchBruteForce(const FeatureSet& query, const FeatureSet& tr
 
 KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size image_size,
                            int cell_size_px)
+    : KeypointGrid(keypoints, image_size, cell_size_px, std::vector<char>(keypoints.size(), 1)) {}
+
+KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size image_size,
+                           int cell_size_px, const std::vector<char>& include)
     : cell_size_(cell_size_px) {
   if (cell_size_px <= 0) throw OptionError("cell_size_px", "must be > 0");
+  if (include.size() != keypoints.size()) {
+    throw InputError(fmt::format("KeypointGrid: {} include flags for {} keypoints", include.size(),
+                                 keypoints.size()));
+  }
   cols_ = std::max(1, (image_size.width + cell_size_ - 1) / cell_size_);
   rows_ = std::max(1, (image_size.height + cell_size_ - 1) / cell_size_);
   cells_.resize(static_cast<std::size_t>(cols_ * rows_));
@@ -233,6 +249,7 @@ KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size imag
     const Eigen::Vector2d& p = keypoints[i].pixel;
     pixels_.push_back(p);
     octaves_.push_back(keypoints[i].octave);
+    if (!include[i]) continue;
     const int c = std::clamp(static_cast<int>(std::floor(p.x() / cell_size_)), 0, cols_ - 1);
     const int r = std::clamp(static_cast<int>(std::floor(p.y() / cell_size_)), 0, rows_ - 1);
     cells_[static_cast<std::size_t>(r * cols_ + c)].push_back(static_cast<int>(i));
@@ -242,24 +259,7 @@ KeypointGrid::KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size imag
 std::vector<int> KeypointGrid::within(const Eigen::Vector2d& center, double radius_px,
                                       int min_octave, int max_octave) const {
   std::vector<int> found;
-  if (!(radius_px >= 0.0) || !center.allFinite()) return found;
-  const auto cell = [this](double v, int count) {
-    return std::clamp(static_cast<int>(std::floor(v / cell_size_)), 0, count - 1);
-  };
-  const int c0 = cell(center.x() - radius_px, cols_), c1 = cell(center.x() + radius_px, cols_);
-  const int r0 = cell(center.y() - radius_px, rows_), r1 = cell(center.y() + radius_px, rows_);
-  const double radius2 = radius_px * radius_px;
-  for (int r = r0; r <= r1; ++r) {
-    for (int c = c0; c <= c1; ++c) {
-      for (const int i : cells_[static_cast<std::size_t>(r * cols_ + c)]) {
-        const int octave = octaves_[static_cast<std::size_t>(i)];
-        if (octave < min_octave || octave > max_octave) continue;
-        if ((pixels_[static_cast<std::size_t>(i)] - center).squaredNorm() <= radius2) {
-          found.push_back(i);
-        }
-      }
-    }
-  }
+  forEachWithin(center, radius_px, min_octave, max_octave, [&](int i) { found.push_back(i); });
   std::sort(found.begin(), found.end());
   return found;
 }
@@ -299,13 +299,13 @@ std::vector<Match> matchByProjection(const FeatureSet& query,
     }
     const int class_id = query.keypoints[i].class_id;
     BestTwo best;
-    for (const int j : train_grid.within(predicted[i], options.radius_px, min_octave, max_octave)) {
+    train_grid.forEachWithin(predicted[i], options.radius_px, min_octave, max_octave, [&](int j) {
       if (options.same_class_only &&
           train.keypoints[static_cast<std::size_t>(j)].class_id != class_id) {
-        continue;
+        return;
       }
       best.offer(distance(static_cast<int>(i), j), j);
-    }
+    });
     if (best.accepted(max_distance, options.ratio)) {
       matches.push_back({static_cast<int>(i), best.index, best.best});
     }

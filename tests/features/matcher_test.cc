@@ -132,6 +132,54 @@ TEST(KeypointGridTest, RadiusQueriesAgreeWithAnExhaustiveSearch) {
   EXPECT_THROW(KeypointGrid(keypoints, cv::Size(752, 480), 0), OptionError);
 }
 
+TEST(KeypointGridTest, ASubsetGridFindsOnlyTheIncludedKeypointsByTheirOwnIndices) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> x(0.0, 752.0), y(0.0, 480.0);
+  std::vector<Keypoint> keypoints(2000);
+  std::vector<char> include(keypoints.size());
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    keypoints[i].pixel = Eigen::Vector2d(x(rng), y(rng));
+    include[i] = i % 3 == 0;
+  }
+  const KeypointGrid grid(keypoints, cv::Size(752, 480), 60, include);
+  EXPECT_EQ(grid.size(), keypoints.size());
+  for (int q = 0; q < 100; ++q) {
+    const Eigen::Vector2d c(x(rng), y(rng));
+    const double r = 10.0 + q;
+    std::vector<int> expected;
+    for (std::size_t i = 0; i < keypoints.size(); ++i) {
+      if (include[i] && (keypoints[i].pixel - c).norm() <= r)
+        expected.push_back(static_cast<int>(i));
+    }
+    EXPECT_EQ(grid.within(c, r), expected);
+  }
+  EXPECT_THROW(KeypointGrid(keypoints, cv::Size(752, 480), 20, std::vector<char>(5, 1)),
+               InputError);
+}
+
+TEST(ProjectionMatcherTest, EqualDistancesGoToTheLowerTrainIndexWhateverTheCellOrder) {
+  // Train 0 lies in a later grid row than train 1; both carry the query's descriptor.
+  FeatureSet query, train;
+  query.image_size = train.image_size = cv::Size(752, 480);
+  query.descriptor_type = train.descriptor_type = DescriptorType::kBinary;
+  query.keypoints.resize(1);
+  query.keypoints[0].pixel = Eigen::Vector2d(100.0, 100.0);
+  query.descriptors = cv::Mat(1, 32, CV_8UC1, cv::Scalar(0x5a));
+  train.keypoints.resize(2);
+  train.keypoints[0].pixel = Eigen::Vector2d(100.0, 140.0);
+  train.keypoints[1].pixel = Eigen::Vector2d(100.0, 60.0);
+  train.descriptors = cv::Mat(2, 32, CV_8UC1, cv::Scalar(0x5a));
+  const KeypointGrid grid(train.keypoints, train.image_size, 20);
+  ProjectionMatchOptions options;
+  options.radius_px = 50.0;
+  options.ratio = 1.0;
+  options.check_orientation = false;
+  const std::vector<Match> matches =
+      matchByProjection(query, {Eigen::Vector2d(100.0, 100.0)}, train, grid, options);
+  ASSERT_EQ(matches.size(), 1u);
+  EXPECT_EQ(matches[0].train, 0);
+}
+
 TEST(ProjectionMatcherTest, FindsTheKeypointsNearTheirPredictedPositions) {
   // The second image is the first shifted by (12, -7) px; predictions carry 2 px of error.
   const cv::Mat big = test::texturedImage(800, 520, 4);

@@ -12,7 +12,9 @@
 // query index.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <climits>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -118,12 +120,22 @@ class KeypointGrid {
   /// Copies the positions and octaves. `cell_size_px` > 0 (else OptionError); keypoints outside
   /// the image fall into the nearest border cell.
   KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size image_size, int cell_size_px = 20);
+  /// As above, but only the keypoints i with `include[i]` != 0 are found by queries; indices
+  /// still refer to `keypoints` (so a subset is searched without copying its descriptors).
+  /// `include` holds one entry per keypoint (else InputError).
+  KeypointGrid(const std::vector<Keypoint>& keypoints, cv::Size image_size, int cell_size_px,
+               const std::vector<char>& include);
 
   /// Indices (ascending) of the keypoints within `radius_px` (Euclidean, inclusive) of
   /// `center`, with octave in [min_octave, max_octave].
   std::vector<int> within(const Eigen::Vector2d& center, double radius_px, int min_octave = 0,
                           int max_octave = INT_MAX) const;
-  /// Number of keypoints indexed.
+  /// Calls `visit(index)` for each keypoint within() would return, in cell order (not sorted);
+  /// no allocation, for the hot loops of the matchers.
+  template <class Visit>
+  void forEachWithin(const Eigen::Vector2d& center, double radius_px, int min_octave,
+                     int max_octave, Visit&& visit) const;
+  /// Number of keypoints the indices refer to (every keypoint given, included or not).
   std::size_t size() const { return pixels_.size(); }
 
  private:
@@ -133,6 +145,27 @@ class KeypointGrid {
   int cols_, rows_;
   std::vector<std::vector<int>> cells_;
 };
+
+template <class Visit>
+void KeypointGrid::forEachWithin(const Eigen::Vector2d& center, double radius_px, int min_octave,
+                                 int max_octave, Visit&& visit) const {
+  if (!(radius_px >= 0.0) || !center.allFinite()) return;
+  const auto cell = [this](double v, int count) {
+    return std::clamp(static_cast<int>(std::floor(v / cell_size_)), 0, count - 1);
+  };
+  const int c0 = cell(center.x() - radius_px, cols_), c1 = cell(center.x() + radius_px, cols_);
+  const int r0 = cell(center.y() - radius_px, rows_), r1 = cell(center.y() + radius_px, rows_);
+  const double radius2 = radius_px * radius_px;
+  for (int r = r0; r <= r1; ++r) {
+    for (int c = c0; c <= c1; ++c) {
+      for (const int i : cells_[static_cast<std::size_t>(r * cols_ + c)]) {
+        const auto k = static_cast<std::size_t>(i);
+        if (octaves_[k] < min_octave || octaves_[k] > max_octave) continue;
+        if ((pixels_[k] - center).squaredNorm() <= radius2) visit(i);
+      }
+    }
+  }
+}
 
 struct ProjectionMatchOptions {
   double radius_px = 15.0;       ///< Search radius around each predicted pixel [px], > 0.
