@@ -299,6 +299,18 @@ class SimulateCommand : public Command {
                      "T0:T1: cam1 has no rows or images in this interval, cam0 goes on (several "
                      "allowed)")
         ->group(group);
+    sub_->add_option("--repeat-timestamps", repeated_rows_,
+                     "T0:T1: camera and IMU rows in this interval are each written twice (same "
+                     "timestamp; several allowed)")
+        ->group(group);
+    sub_->add_option("--swap-timestamps", swapped_rows_,
+                     "T0:T1: each two consecutive camera and IMU rows in this interval are "
+                     "written in reverse time order (several allowed)")
+        ->group(group);
+    sub_->add_option("--imu-saturate", imu_saturated_,
+                     "T0:T1: imu0/data.csv rows in this interval are at the sensor's range "
+                     "(+-2000 deg/s, +-16 g, in imu0/sensor.yaml) on every axis (several allowed)")
+        ->group(group);
     sub_->add_option("--time-offset", options_.faults.imu_time_offset_s,
                      "Camera-IMU time offset [s], |offset| < 1: every IMU timestamp is written "
                      "this much late (ground truth and images keep the true times)")
@@ -319,6 +331,12 @@ class SimulateCommand : public Command {
     }
     for (const std::string& text : missing_cam1_)
       options_.faults.missing_cam1.push_back(sim::parseFaultInterval(text, "--missing-cam1"));
+    for (const std::string& text : repeated_rows_)
+      options_.faults.repeated_rows.push_back(sim::parseFaultInterval(text, "--repeat-timestamps"));
+    for (const std::string& text : swapped_rows_)
+      options_.faults.swapped_rows.push_back(sim::parseFaultInterval(text, "--swap-timestamps"));
+    for (const std::string& text : imu_saturated_)
+      options_.faults.imu_saturated.push_back(sim::parseFaultInterval(text, "--imu-saturate"));
   }
 
   void applyChoices() {
@@ -393,6 +411,9 @@ class SimulateCommand : public Command {
   std::vector<std::string> black_frames_;
   std::vector<std::string> overexposed_frames_;
   std::vector<std::string> missing_cam1_;
+  std::vector<std::string> repeated_rows_;
+  std::vector<std::string> swapped_rows_;
+  std::vector<std::string> imu_saturated_;
 };
 
 }  // namespace

@@ -179,6 +179,10 @@ ImuCalibration readImuCalibration(const fs::path& sensor_yaml) {
   calibration.gyroscope_random_walk = positiveNumber(yaml, "gyroscope_random_walk");
   calibration.accelerometer_noise_density = positiveNumber(yaml, "accelerometer_noise_density");
   calibration.accelerometer_random_walk = positiveNumber(yaml, "accelerometer_random_walk");
+  if (yaml.has("gyroscope_range"))
+    calibration.gyroscope_range = positiveNumber(yaml, "gyroscope_range");
+  if (yaml.has("accelerometer_range"))
+    calibration.accelerometer_range = positiveNumber(yaml, "accelerometer_range");
   return calibration;
 }
 

@@ -66,6 +66,48 @@ struct GroundTruthRows {
   bool full_state = false;
 };
 
+/// "5, 7-9, 12" (defined below).
+std::string lineRuns(const std::vector<int>& lines, std::size_t max_runs);
+
+/// Rows of a sensor stream whose timestamps do not increase, as drivers produce them: rows out of
+/// order are put back in time order, and of rows with one timestamp only the first is kept. Both
+/// are reported in `warnings`, naming the file and lines; nothing else changes.
+template <class Row, class TimeOf>
+std::vector<Row> inTimeOrder(std::vector<Row> rows, TimeOf time_of, const fs::path& csv,
+                             std::vector<std::string>& warnings) {
+  std::vector<int> late;
+  for (std::size_t k = 1, latest = 0; k < rows.size(); ++k) {
+    if (time_of(rows[k]) < time_of(rows[latest])) {
+      late.push_back(rows[k].line);
+    } else {
+      latest = k;
+    }
+  }
+  if (!late.empty()) {
+    std::stable_sort(rows.begin(), rows.end(),
+                     [&](const Row& a, const Row& b) { return time_of(a) < time_of(b); });
+    warnings.push_back(fmt::format("{}: {} row(s) out of time order put back in order (lines {})",
+                                   csv.string(), late.size(), lineRuns(late, 5)));
+  }
+  std::vector<int> repeated;
+  std::vector<Row> kept;
+  kept.reserve(rows.size());
+  for (Row& row : rows) {
+    if (!kept.empty() && time_of(row) == time_of(kept.back())) {
+      repeated.push_back(row.line);
+      continue;
+    }
+    kept.push_back(std::move(row));
+  }
+  if (!repeated.empty()) {
+    std::sort(repeated.begin(), repeated.end());
+    warnings.push_back(
+        fmt::format("{}: {} row(s) repeating an earlier row's timestamp skipped (lines {})",
+                    csv.string(), repeated.size(), lineRuns(repeated, 5)));
+  }
+  return kept;
+}
+
 fs::path findMav0(const fs::path& path) {
   if (!fs::is_directory(path))
     throw InputError(InputLocation{path}, "dataset folder does not exist");
@@ -80,18 +122,19 @@ fs::path requireFile(const fs::path& file) {
   return file;
 }
 
-CameraList readCameraList(const fs::path& camera_dir) {
+CameraList readCameraList(const fs::path& camera_dir, std::vector<std::string>& warnings) {
   CameraList list;
   list.csv = requireFile(camera_dir / "data.csv");
   for (const TextRow& row : readTextRows(list.csv, Delimiter::kComma)) {
     requireFieldCount(row, list.csv, 2, 2);
     const TimeNs t_ns = parseIntegerNs(row.fields[0], row.at(list.csv, "timestamp"));
-    requireIncreasingTime(list.images.empty() ? 0 : list.images.back().ref.t_ns, t_ns,
-                          !list.images.empty(), row.at(list.csv, "timestamp"));
     if (row.fields[1].empty()) throw InputError(row.at(list.csv, "filename"), "empty file name");
     list.images.push_back({{t_ns, camera_dir / "data" / row.fields[1]}, row.line});
   }
   if (list.images.empty()) throw InputError(InputLocation{list.csv}, "no image rows found");
+  list.images = inTimeOrder(
+      std::move(list.images), [](const ListedImage& image) { return image.ref.t_ns; }, list.csv,
+      warnings);
   return list;
 }
 
@@ -201,30 +244,47 @@ std::optional<double> parseImuValue(std::string_view field, const InputLocation&
 /// "5, 7-9, 12": the line numbers (ascending) with runs of consecutive ones joined, at most
 /// `max_runs` runs and then "...".
 std::string lineRuns(const std::vector<int>& lines, std::size_t max_runs) {
-  std::vector<std::string> runs;
-  for (std::size_t i = 0; i < lines.size();) {
+  std::string text;
+  std::size_t runs = 0;
+  for (std::size_t i = 0; i < lines.size(); ++runs) {
     std::size_t j = i;
     while (j + 1 < lines.size() && lines[j + 1] == lines[j] + 1)
       ++j;
-    if (runs.size() == max_runs) {
-      runs.emplace_back("...");
+    if (runs > 0) text += ", ";
+    if (runs == max_runs) {
+      text += "...";
       break;
     }
-    runs.push_back(j == i ? fmt::format("{}", lines[i]) : fmt::format("{}-{}", lines[i], lines[j]));
+    text += j == i ? fmt::format("{}", lines[i]) : fmt::format("{}-{}", lines[i], lines[j]);
     i = j + 1;
   }
-  return fmt::format("{}", fmt::join(runs, ", "));
+  return text;
 }
 
-std::vector<ImuSample> readImuCsv(const fs::path& csv, TimeNs nominal_period_ns,
+/// An IMU row with its line, for the reports.
+struct ImuRow {
+  ImuSample sample;
+  int line = 0;
+};
+
+/// Whether a sample is at or beyond the sensor's range on some axis (a clipped reading); ranges
+/// <= 0 are unknown and never match.
+bool saturated(const ImuSample& sample, const ImuCalibration& calibration) {
+  const auto beyond = [](const Eigen::Vector3d& v, double range) {
+    return range > 0.0 && v.cwiseAbs().maxCoeff() >= range;
+  };
+  return beyond(sample.gyro, calibration.gyroscope_range) ||
+         beyond(sample.accel, calibration.accelerometer_range);
+}
+
+std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& calibration,
                                   std::vector<std::string>& warnings) {
   static constexpr std::array<const char*, 6> kNames = {"gyro_x",  "gyro_y",  "gyro_z",
                                                         "accel_x", "accel_y", "accel_z"};
   const auto gap_threshold_ns =
-      static_cast<TimeNs>(kImuGapWarningPeriods * static_cast<double>(nominal_period_ns));
-  std::vector<ImuSample> samples;
-  ImuGaps gaps;
-  std::vector<int> non_finite_lines;
+      static_cast<TimeNs>(kImuGapWarningPeriods * static_cast<double>(calibration.periodNs()));
+  std::vector<ImuRow> rows;
+  std::vector<int> non_finite_lines, saturated_lines;
   for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
     requireFieldCount(row, csv, 7, 7);
     ImuSample sample;
@@ -237,20 +297,35 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, TimeNs nominal_period_ns,
     }
     if (!finite) {
       non_finite_lines.push_back(row.line);
-      continue;
+    } else if (saturated(sample, calibration)) {
+      saturated_lines.push_back(row.line);
+    } else {
+      rows.push_back({sample, row.line});
     }
-    if (!samples.empty()) {
-      requireIncreasingTime(samples.back().t_ns, sample.t_ns, true, row.at(csv, "timestamp"));
-      gaps.note(sample.t_ns - samples.back().t_ns, gap_threshold_ns, row.line);
-    }
-    samples.push_back(sample);
   }
   if (!non_finite_lines.empty()) {
     warnings.push_back(fmt::format("{}: {} row(s) with nan or inf values skipped (lines {})",
                                    csv.string(), non_finite_lines.size(),
                                    lineRuns(non_finite_lines, 5)));
   }
-  if (samples.empty()) throw InputError(InputLocation{csv}, "no IMU rows found");
+  if (!saturated_lines.empty()) {
+    warnings.push_back(fmt::format(
+        "{}: {} row(s) at the sensor's range (saturated: |gyro| >= {} rad/s or |accel| >= {} "
+        "m/s^2, sensor.yaml) skipped (lines {})",
+        csv.string(), saturated_lines.size(), calibration.gyroscope_range,
+        calibration.accelerometer_range, lineRuns(saturated_lines, 5)));
+  }
+  if (rows.empty()) throw InputError(InputLocation{csv}, "no IMU rows found");
+  rows = inTimeOrder(
+      std::move(rows), [](const ImuRow& row) { return row.sample.t_ns; }, csv, warnings);
+  std::vector<ImuSample> samples;
+  samples.reserve(rows.size());
+  ImuGaps gaps;
+  for (const ImuRow& row : rows) {
+    if (!samples.empty())
+      gaps.note(row.sample.t_ns - samples.back().t_ns, gap_threshold_ns, row.line);
+    samples.push_back(row.sample);
+  }
   if (gaps.count > 0) {
     warnings.push_back(fmt::format(
         "{}: {} gap(s) longer than {} nominal periods ({:.1f} ms); the largest, {:.1f} ms, ends at "
@@ -357,14 +432,14 @@ EurocDataset EurocDataset::open(const fs::path& path) {
   dataset.root_ = findMav0(path);
   const fs::path cam0_dir = dataset.root_ / "cam0";
   dataset.cam0_ = readCameraCalibration(cam0_dir / "sensor.yaml");
-  const CameraList cam0 = readCameraList(cam0_dir);
+  const CameraList cam0 = readCameraList(cam0_dir, dataset.warnings_);
   dataset.cam0_frames_ = servedFrames(cam0);
   warnAboutDroppedFrames(cam0, dataset.cam0_.rate_hz, dataset.warnings_);
 
   const fs::path cam1_dir = dataset.root_ / "cam1";
   if (fs::is_directory(cam1_dir)) {
     dataset.cam1_ = readCameraCalibration(cam1_dir / "sensor.yaml");
-    const CameraList cam1 = readCameraList(cam1_dir);
+    const CameraList cam1 = readCameraList(cam1_dir, dataset.warnings_);
     dataset.cam1_range_ = TimeRange{cam1.images.front().ref.t_ns, cam1.images.back().ref.t_ns};
     dataset.stereo_frames_ = pairStereoFrames(cam0, cam1, dataset.warnings_);
   }
@@ -372,8 +447,8 @@ EurocDataset EurocDataset::open(const fs::path& path) {
   const fs::path imu_dir = dataset.root_ / "imu0";
   if (fs::is_directory(imu_dir)) {
     dataset.imu_calibration_ = readImuCalibration(imu_dir / "sensor.yaml");
-    dataset.imu_ = readImuCsv(requireFile(imu_dir / "data.csv"),
-                              dataset.imu_calibration_->periodNs(), dataset.warnings_);
+    dataset.imu_ =
+        readImuCsv(requireFile(imu_dir / "data.csv"), *dataset.imu_calibration_, dataset.warnings_);
   }
 
   const fs::path ground_truth_csv = dataset.root_ / "state_groundtruth_estimate0" / "data.csv";

@@ -87,6 +87,7 @@ bool inAnyInterval(const std::vector<FaultInterval>& intervals, double t_s) {
 bool SensorFaultOptions::any() const {
   return drop_frame_rate > 0.0 || !drop_frames.empty() || !imu_gaps.empty() || !imu_nan.empty() ||
          !black_frames.empty() || !overexposed_frames.empty() || !missing_cam1.empty() ||
+         !repeated_rows.empty() || !swapped_rows.empty() || !imu_saturated.empty() ||
          imu_time_offset_s != 0.0;
 }
 
@@ -105,12 +106,39 @@ void SensorFaultOptions::validate() const {
   validateIntervals(black_frames, "--black-frames");
   validateIntervals(overexposed_frames, "--overexposed-frames");
   validateIntervals(missing_cam1, "--missing-cam1");
+  validateIntervals(repeated_rows, "--repeat-timestamps");
+  validateIntervals(swapped_rows, "--swap-timestamps");
+  validateIntervals(imu_saturated, "--imu-saturate");
 }
 
 bool SensorFaultOptions::dropsFrame(std::size_t index, std::uint64_t seed) const {
   if (std::find(drop_frames.begin(), drop_frames.end(), index) != drop_frames.end()) return true;
   if (index == 0 || !(drop_frame_rate > 0.0)) return false;
   return unitFromHash(mix64(mix64(seed ^ 0xd5095ULL) + index)) < drop_frame_rate;
+}
+
+std::vector<std::string> faultyRowOrder(const std::vector<TimedRow>& rows,
+                                        const SensorFaultOptions& faults) {
+  std::vector<std::string> out;
+  out.reserve(rows.size());
+  const auto swapped = [&](std::size_t k) {
+    return k + 1 < rows.size() && inAnyInterval(faults.swapped_rows, rows[k].t_s) &&
+           inAnyInterval(faults.swapped_rows, rows[k + 1].t_s);
+  };
+  const auto write = [&](const TimedRow& row) {
+    out.push_back(row.text);
+    if (inAnyInterval(faults.repeated_rows, row.t_s)) out.push_back(row.text);
+  };
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    if (swapped(k)) {
+      write(rows[k + 1]);
+      write(rows[k]);
+      ++k;
+    } else {
+      write(rows[k]);
+    }
+  }
+  return out;
 }
 
 }  // namespace superdyna::sim

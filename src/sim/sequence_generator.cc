@@ -92,6 +92,11 @@ void writeCameraYaml(const fs::path& file, const std::string& name, const RigOpt
              k[2], k[3]);
 }
 
+/// The simulated IMU's measurement range, the largest settings of common MEMS IMUs: +-2000 deg/s
+/// and +-16 g. Readings are clipped to it (ordinary motions stay far inside).
+constexpr double kGyroscopeRange = 2000.0 * M_PI / 180.0;  // [rad/s]
+constexpr double kAccelerometerRange = 16.0 * 9.80665;     // [m/s^2]
+
 void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu, const SE3d& T_b_i) {
   auto out = openForWriting(file);
   out << sensorHeader("imu", "SuperDynaSLAM simulated IMU (EuRoC ADIS16448-like noise)", T_b_i)
@@ -100,31 +105,52 @@ void writeImuYaml(const fs::path& file, const ImuNoiseOptions& imu, const SE3d& 
              "gyroscope_noise_density: {:.6e}     # [ rad / s / sqrt(Hz) ]\n"
              "gyroscope_random_walk: {:.6e}       # [ rad / s^2 / sqrt(Hz) ]\n"
              "accelerometer_noise_density: {:.6e} # [ m / s^2 / sqrt(Hz) ]\n"
-             "accelerometer_random_walk: {:.6e}   # [ m / s^3 / sqrt(Hz) ]\n",
+             "accelerometer_random_walk: {:.6e}   # [ m / s^3 / sqrt(Hz) ]\n\n"
+             "# measurement range (readings beyond are clipped)\n"
+             "gyroscope_range: {:.9g}       # [ rad / s ]\n"
+             "accelerometer_range: {:.9g}   # [ m / s^2 ]\n",
              imu.rate_hz, imu.gyroscope_noise_density, imu.gyroscope_random_walk,
-             imu.accelerometer_noise_density, imu.accelerometer_random_walk);
+             imu.accelerometer_noise_density, imu.accelerometer_random_walk, kGyroscopeRange,
+             kAccelerometerRange);
+}
+
+/// A reading clipped to the sensor's range; at the range itself (with the true sign) when
+/// `saturate`.
+Eigen::Vector3d clipped(const Eigen::Vector3d& v, double range, bool saturate) {
+  Eigen::Vector3d out;
+  for (int i = 0; i < 3; ++i)
+    out[i] = saturate ? std::copysign(range, v[i]) : std::clamp(v[i], -range, range);
+  return out;
 }
 
 /// imu0/data.csv; the rows in faults.imu_gaps are left out, those in faults.imu_nan written as
-/// "nan" (times in seconds after t_first_ns, the first frame); every timestamp is written
-/// faults.imu_time_offset_s late.
+/// "nan", those in faults.imu_saturated at the range (times in seconds after t_first_ns, the first
+/// frame); every timestamp is written faults.imu_time_offset_s late; rows repeated and swapped as
+/// faultyRowOrder() says.
 void writeImuData(const fs::path& file, const ImuSequence& imu, const SensorFaultOptions& faults,
                   TimeNs t_first_ns) {
-  auto out = openForWriting(file);
-  out << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
-         "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  std::vector<TimedRow> rows;
+  rows.reserve(imu.measurements.size());
   const TimeNs offset_ns = secondsToNs(faults.imu_time_offset_s);
   for (const ImuMeasurement& m : imu.measurements) {
     const double t_s = nsToSeconds(m.t_ns - t_first_ns);
     if (inAnyInterval(faults.imu_gaps, t_s)) continue;
     const TimeNs stamp_ns = m.t_ns + offset_ns;
     if (inAnyInterval(faults.imu_nan, t_s)) {
-      out << stamp_ns << ",nan,nan,nan,nan,nan,nan\n";
+      rows.push_back({t_s, fmt::format("{},nan,nan,nan,nan,nan,nan", stamp_ns)});
       continue;
     }
-    out << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}\n", stamp_ns, m.gyro.x(),
-                       m.gyro.y(), m.gyro.z(), m.accel.x(), m.accel.y(), m.accel.z());
+    const bool saturate = inAnyInterval(faults.imu_saturated, t_s);
+    const Eigen::Vector3d w = clipped(m.gyro, kGyroscopeRange, saturate);
+    const Eigen::Vector3d a = clipped(m.accel, kAccelerometerRange, saturate);
+    rows.push_back({t_s, fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", stamp_ns,
+                                     w.x(), w.y(), w.z(), a.x(), a.y(), a.z())});
   }
+  auto out = openForWriting(file);
+  out << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+         "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+  for (const std::string& row : faultyRowOrder(rows, faults))
+    out << row << '\n';
 }
 
 void writeGroundTruth(const fs::path& folder, const ImuSequence& imu) {
@@ -386,11 +412,8 @@ class SequenceWriter {
   }
 
   void run(const ProgressCallback& progress, SimulationSummary* summary) {
-    auto data0 = openForWriting(mav0_ / "cam0/data.csv");
-    auto data1 = openForWriting(mav0_ / "cam1/data.csv");
+    std::vector<TimedRow> rows0, rows1;  // written at the end, with the faults' row order
     auto states = openForWriting(mav0_ / "instance_states.csv");
-    data0 << "#timestamp [ns],filename\n";
-    data1 << "#timestamp [ns],filename\n";
     std::optional<std::ofstream> photometric;
     if (photometricEffectsOn()) {
       photometric = openForWriting(mav0_ / "photometric.csv");
@@ -417,10 +440,10 @@ class SequenceWriter {
       const double t_s = nsToSeconds(t - frame_times_.front());
       applyImageFaults(t_s, left, right);
       writeFrame(0, name, left);
-      data0 << t << ',' << name << '\n';
+      rows0.push_back({t_s, fmt::format("{},{}", t, name)});
       if (!inAnyInterval(options_.faults.missing_cam1, t_s)) {
         writeFrame(1, name, right);
-        data1 << t << ',' << name << '\n';
+        rows1.push_back({t_s, fmt::format("{},{}", t, name)});
       }
       const std::array<double, 2> gains = {illumination_.gain(0, t), illumination_.gain(1, t)};
       stats.add(gains, left, right);
@@ -447,6 +470,8 @@ class SequenceWriter {
       if (options_.preview_path && k == previewIndex()) writePreview(left);
       if (progress) progress(static_cast<int>(k) + 1, static_cast<int>(frame_times_.size()));
     }
+    writeCameraRows(mav0_ / "cam0/data.csv", rows0);
+    writeCameraRows(mav0_ / "cam1/data.csv", rows1);
     if (static_cast<int>(landmarks_.size()) > options_.landmark_count) {
       landmarks_.resize(static_cast<std::size_t>(options_.landmark_count));
     }
@@ -461,6 +486,13 @@ class SequenceWriter {
 
  private:
   SE3d cameraPose(int cam, TimeNs t) const { return spline_.pose(t) * T_b_c_[cam]; }
+
+  void writeCameraRows(const fs::path& csv, const std::vector<TimedRow>& rows) const {
+    auto out = openForWriting(csv);
+    out << "#timestamp [ns],filename\n";
+    for (const std::string& row : faultyRowOrder(rows, options_.faults))
+      out << row << '\n';
+  }
 
   /// Black or overexposed images at t_s (after the first frame); masks and ground truth unchanged.
   void applyImageFaults(double t_s, RenderResult& left, RenderResult& right) const {

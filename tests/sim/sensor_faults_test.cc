@@ -132,5 +132,75 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   EXPECT_TRUE(anyContains(dataset.warnings(), "2 gap(s) longer than 5 nominal periods"));
 }
 
+TEST(SensorFaults, RowOrderRepeatsAndSwapsOnlyInsideTheirIntervals) {
+  std::vector<TimedRow> rows;
+  for (int k = 0; k < 8; ++k)
+    rows.push_back({0.1 * k, std::to_string(k)});
+  SensorFaultOptions faults;
+  faults.repeated_rows = {{0.05, 0.15}};  // row 1
+  faults.swapped_rows = {{0.25, 0.65}};   // rows 3-6: (3, 4) and (5, 6) swapped
+  EXPECT_EQ(faultyRowOrder(rows, faults),
+            (std::vector<std::string>{"0", "1", "1", "2", "4", "3", "6", "5", "7"}));
+  faults.swapped_rows = {{0.25, 0.45}};   // rows 3 and 4 only
+  faults.repeated_rows = {{0.35, 0.45}};  // row 4, written twice where it lands
+  EXPECT_EQ(faultyRowOrder(rows, faults),
+            (std::vector<std::string>{"0", "1", "2", "4", "4", "3", "5", "6", "7"}));
+  EXPECT_EQ(faultyRowOrder(rows, SensorFaultOptions()).size(), rows.size());
+  faults.imu_saturated = {{1.0, 0.5}};
+  test::expectError<OptionError>([&] { faults.validate(); }, {"--imu-saturate"});
+}
+
+/// Repeated and swapped camera and IMU rows over [0.3, 0.5) s, saturated IMU rows over
+/// [0.8, 0.9) s: the reader restores the clean sequence's frames and IMU samples (less the
+/// saturated ones) and reports each fault.
+TEST(SensorFaults, RepeatedSwappedAndSaturatedRowsAreRepairedOrSkippedByTheReader) {
+  const auto simulate = [](const fs::path& out, const SensorFaultOptions& faults) {
+    SimulationOptions options;
+    options.output_dir = out;
+    options.overwrite = true;
+    options.motion.duration_s = 1.0;
+    options.world.scene = SceneType::kIndoor;
+    options.world.dynamic = DynamicLevel::kNone;
+    options.landmark_count = 0;
+    options.faults = faults;
+    generateSequence(options);
+    return io::EurocDataset::open(out);
+  };
+  const test::ScratchDir clean_dir("sensor_faults_clean"), faulty_dir("sensor_faults_rows");
+  const io::EurocDataset clean = simulate(clean_dir.path(), {});
+  SensorFaultOptions faults;
+  faults.repeated_rows = {{0.3, 0.4}};
+  faults.swapped_rows = {{0.4, 0.5}};
+  faults.imu_saturated = {{0.8, 0.9}};
+  const io::EurocDataset faulty = simulate(faulty_dir.path(), faults);
+
+  ASSERT_EQ(faulty.stereoFrames().size(), clean.stereoFrames().size());
+  for (std::size_t k = 0; k < clean.stereoFrames().size(); ++k)
+    EXPECT_EQ(faulty.stereoFrames()[k].t_ns, clean.stereoFrames()[k].t_ns);
+  const TimeNs t0 = clean.stereoFrames().front().t_ns;
+  const auto saturatedTime = [&](TimeNs t) {
+    return t - t0 >= secondsToNs(0.8) && t - t0 < secondsToNs(0.9);
+  };
+  std::size_t kept = 0;
+  for (const io::ImuSample& sample : clean.imu()) {
+    if (saturatedTime(sample.t_ns)) continue;
+    ASSERT_LT(kept, faulty.imu().size());
+    EXPECT_EQ(faulty.imu()[kept].t_ns, sample.t_ns);
+    EXPECT_EQ(faulty.imu()[kept].accel, sample.accel);
+    ++kept;
+  }
+  EXPECT_EQ(faulty.imu().size(), kept);
+  EXPECT_NEAR(static_cast<double>(clean.imu().size() - kept), 20.0, 1.0);  // 0.1 s at 200 Hz
+  const auto& warnings = faulty.warnings();
+  EXPECT_TRUE(
+      anyContains(warnings, "cam0/data.csv: 2 row(s) repeating an earlier row's timestamp"));
+  EXPECT_TRUE(anyContains(warnings, "cam1/data.csv: 1 row(s) out of time order"));
+  EXPECT_TRUE(
+      anyContains(warnings, "imu0/data.csv: 20 row(s) repeating an earlier row's timestamp"));
+  EXPECT_TRUE(anyContains(warnings, "imu0/data.csv: 10 row(s) out of time order"));
+  EXPECT_TRUE(anyContains(warnings, "row(s) at the sensor's range (saturated"));
+  EXPECT_NEAR(faulty.imuCalibration()->accelerometer_range, 16.0 * 9.80665, 1e-6);
+}
+
 }  // namespace
 }  // namespace superdyna::sim

@@ -62,6 +62,10 @@ struct ImuCalibration {
   double gyroscope_random_walk = 0.0;        ///< Bias random walk, rad / s^2 / sqrt(Hz).
   double accelerometer_noise_density = 0.0;  ///< White noise, m / s^2 / sqrt(Hz).
   double accelerometer_random_walk = 0.0;    ///< Bias random walk, m / s^3 / sqrt(Hz).
+  /// Measurement ranges (optional sensor.yaml keys `gyroscope_range` [rad/s] and
+  /// `accelerometer_range` [m/s^2]; 0 = unknown): readings at or beyond them are clipped ones.
+  double gyroscope_range = 0.0;
+  double accelerometer_range = 0.0;
 
   /// Nominal time between samples (rate_hz must be positive, as the readers ensure).
   TimeNs periodNs() const { return secondsToNs(1.0 / rate_hz); }
@@ -74,7 +78,8 @@ struct ImuCalibration {
 /// matching the model; T_BS a rigid transform).
 CameraCalibration readCameraCalibration(const std::filesystem::path& sensor_yaml);
 
-/// Reads an IMU sensor.yaml (EuRoC): T_BS, rate_hz and the four positive noise parameters.
+/// Reads an IMU sensor.yaml (EuRoC): T_BS, rate_hz and the four positive noise parameters; the
+/// optional positive `gyroscope_range` and `accelerometer_range` (the simulator writes them).
 ImuCalibration readImuCalibration(const std::filesystem::path& sensor_yaml);
 
 /// Checks a homogeneous 4x4 transform: finite, last row 0 0 0 1, rotation orthonormal within

@@ -12,7 +12,13 @@
 //   * a missing camera: cam1's rows and images of an interval are not written (one camera's
 //     driver dropped out; cam0 goes on);
 //   * a camera-IMU time offset: every IMU timestamp is written `imu_time_offset_s` late (the IMU
-//     clock runs ahead of the cameras' and the ground truth's), which no reader can detect.
+//     clock runs ahead of the cameras' and the ground truth's), which no reader can detect;
+//   * repeated timestamps: the camera and IMU rows of an interval are each written twice (a
+//     driver publishing a message again);
+//   * out-of-order timestamps: in an interval, each two consecutive camera rows and IMU rows are
+//     written swapped (messages arriving late);
+//   * saturated IMU samples: the rows of an interval are written at the sensor's range on every
+//     axis, with the true values' signs (readings clipped by a shock).
 // Intervals are in seconds after the first frame of the sequence, half-open [t0, t1).
 
 #include <cstddef>
@@ -42,6 +48,9 @@ struct SensorFaultOptions {
   std::vector<FaultInterval> black_frames;  ///< Images written all black.
   std::vector<FaultInterval> overexposed_frames;  ///< Images written all white (255).
   std::vector<FaultInterval> missing_cam1;        ///< cam1 rows and images left out.
+  std::vector<FaultInterval> repeated_rows;       ///< Camera and IMU rows written twice.
+  std::vector<FaultInterval> swapped_rows;        ///< Consecutive rows written swapped.
+  std::vector<FaultInterval> imu_saturated;       ///< IMU rows written at the sensor's range.
   double imu_time_offset_s = 0.0;  ///< Added to every IMU timestamp [s], |offset| < 1.
 
   bool any() const;
@@ -58,5 +67,16 @@ void parseDropFrames(const std::string& text, SensorFaultOptions* faults);
 
 /// Whether t_s lies in one of the intervals.
 bool inAnyInterval(const std::vector<FaultInterval>& intervals, double t_s);
+
+/// A data.csv row to be written, at t_s after the first frame.
+struct TimedRow {
+  double t_s = 0.0;
+  std::string text;
+};
+
+/// The rows as the faults write them: each row in a repeated_rows interval twice, and in the
+/// swapped_rows intervals each two consecutive rows (both inside) in reverse order.
+std::vector<std::string> faultyRowOrder(const std::vector<TimedRow>& rows,
+                                        const SensorFaultOptions& faults);
 
 }  // namespace superdyna::sim
