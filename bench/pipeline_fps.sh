@@ -8,7 +8,9 @@
 #                              [DURATION_S=30] [SEED=3]
 # Environment: SUPERDYNA (the binary, default build/bin/superdyna), MODES (default
 # "deterministic concurrent"), CONFIG (default configs/euroc_stereo_inertial.yaml; e.g.
-# configs/euroc_stereo_inertial_xfeat.yaml with SUPERDYNA_MODEL_DIR set for the XFeat pipeline).
+# configs/euroc_stereo_inertial_xfeat.yaml with SUPERDYNA_MODEL_DIR set for the XFeat pipeline),
+# SEQUENCE (a sequence folder to run instead of the generated one, e.g. a `simulate --dynamic high`
+# street), RUN_ARGS (more `run` options, e.g. "--instance-masks --dynamic semantic-geometric").
 #
 # Wall-clock FPS depends on what else runs on the machine; the "CPU-bound FPS" columns estimate the
 # rate on 2 otherwise idle cores from CPU times: frames / max(busiest thread, all threads / 2). The
@@ -23,9 +25,12 @@ duration=${2:-30}
 seed=${3:-3}
 modes=${MODES:-deterministic concurrent}
 config=${CONFIG:-$repo/configs/euroc_stereo_inertial.yaml}
-seq=$cache/fps_indoor_mh03_${duration}s_seed$seed
+seq=${SEQUENCE:-$cache/fps_indoor_mh03_${duration}s_seed$seed}
+read -r -a run_args <<<"${RUN_ARGS:-}"
 trajectory=${SUPERDYNA_SHARED_DIR:-$repo/../shared}/data/trajectories/euroc/MH_03_medium.txt
-if [ ! -f "$seq/simulation.yaml" ]; then
+if [ -n "${SEQUENCE:-}" ]; then
+  [ -d "$seq/mav0" ] || { echo "SEQUENCE=$seq: no mav0/ folder in it" >&2; exit 2; }
+elif [ ! -f "$seq/simulation.yaml" ]; then
   echo "generating $seq (once)"
   motion=()
   [ -f "$trajectory" ] && motion=(--trajectory "$trajectory" --start 15)
@@ -42,7 +47,7 @@ for mode in $modes; do
   [ "$mode" = deterministic ] && flag=(--deterministic)
   log=$out/$mode.log
   "$superdyna" run --dataset euroc --path "$seq" --mode stereo-inertial \
-    --config "$config" --output "$out/$mode.txt" "${flag[@]}" \
+    --config "$config" --output "$out/$mode.txt" "${flag[@]}" "${run_args[@]}" \
     >"$log" 2>&1 || { echo "$mode run failed, see $log" >&2; exit 1; }
   awk -v mode="$mode" '
     /^[0-9]+ frames in/ { frames = $1; fps = $6; gsub(/[(]/, "", fps) }
@@ -73,5 +78,5 @@ for mode in $modes; do
                  mode, frames, fps, bound, ex, st, tr, ba, fe, hp, tk, mp, ate }' "$log"
 done
 echo
-echo "config $config"
+echo "config $config${RUN_ARGS:+, run options $RUN_ARGS}"
 echo "sequence $seq; logs in $out; $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -205,14 +205,13 @@ TEST(OptionsFile, ReadsTheFeaturesSection) {
 }
 
 TEST(ShippedConfigs, Load) {
-  for (const char* name :
-       {"euroc_stereo.yaml", "euroc_stereo_inertial.yaml", "kitti_stereo.yaml", "euroc_mono.yaml",
-        "euroc_mono_inertial.yaml", "kitti_mono.yaml", "euroc_stereo_inertial_xfeat.yaml",
-        "euroc_stereo_xfeat.yaml", "euroc_mono_xfeat.yaml", "euroc_mono_inertial_xfeat.yaml",
-        "euroc_stereo_inertial_superpoint.yaml"}) {
-    const fs::path file = fs::path(SUPERDYNA_SOURCE_DIR) / "configs" / name;
-    EXPECT_NO_THROW(loadSystemOptions(file)) << file;
+  std::size_t loaded = 0;
+  for (const auto& entry : fs::directory_iterator(fs::path(SUPERDYNA_SOURCE_DIR) / "configs")) {
+    if (entry.path().extension() != ".yaml") continue;
+    EXPECT_NO_THROW(loadSystemOptions(entry.path())) << entry.path();
+    ++loaded;
   }
+  EXPECT_GE(loaded, 12u);
 }
 
 TEST(StereoSlam, TracksSyntheticStreetWithinBound) {
