@@ -14,9 +14,12 @@ fi
 "$repo_dir/scripts/setup.sh"
 ctest --test-dir "$build_dir" --output-on-failure -j "${JOBS:-$(nproc)}" --timeout 1200
 # Brief fuzzing of the io and map parsers (bench/fuzz.sh: a clang ASan/UBSan build of those
-# modules only, in build-fuzz/): SUPERDYNA_FUZZ_SECONDS per target, 0 skips it.
+# modules only, in build-fuzz/), then their unit tests in that build (scripts/asan_tests.sh):
+# SUPERDYNA_FUZZ_SECONDS per target, 0 skips both.
 fuzz_seconds=${SUPERDYNA_FUZZ_SECONDS:-15}
 if [ "$fuzz_seconds" != 0 ]; then
   JOBS=${JOBS:-$(nproc)} "$repo_dir/bench/fuzz.sh" "$fuzz_seconds" euroc_csv euroc_sensor_yaml kitti trajectory \
     instance_mask map_file
+  # The parser and container tests under ASan + UBSan, in that instrumented build.
+  JOBS=${JOBS:-$(nproc)} "$repo_dir/scripts/asan_tests.sh"
 fi
