@@ -1,7 +1,6 @@
 #include "superdyna/io/euroc_dataset.h"
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <array>
