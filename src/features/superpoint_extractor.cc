@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <numeric>
 
@@ -37,6 +38,21 @@ int effectiveSizeMultiple(const SuperPointOptions& options, const inference::Onn
         fmt::format("metadata value '{}' is not a size multiple in [1, 1024]", *value));
   }
   return std::lcm(options.size_multiple, required);
+}
+
+/// 1 or 3, the model input's channel dimension (a dynamic one is taken as 1, gray); InputError
+/// naming the model file and input otherwise.
+int inputChannelsOf(const inference::OnnxModel& model) {
+  const inference::TensorInfo& input = model.modelInputs().at(0);
+  const std::int64_t channels = input.dims.size() == 4 ? input.dims[1] : 0;
+  if (channels < 0) return 1;
+  if (channels != 1 && channels != 3) {
+    throw InputError(InputLocation(model.file(), 0, input.name),
+                     fmt::format("SuperPoint input {} has {} channels; expected 1 (gray) or 3 "
+                                 "(RGB)",
+                                 input.describe(), channels));
+  }
+  return static_cast<int>(channels);
 }
 
 }  // namespace
@@ -75,7 +91,7 @@ inference::ModelSignature SuperPointExtractor::signature(const SuperPointOptions
   signature.network = "SuperPoint";
   signature.inputs.push_back(
       {"",
-       {DimSpec::dynamic("batch"), DimSpec::fixed(1, "channels"),
+       {DimSpec::dynamic("batch"), DimSpec::dynamic("channels: 1 or 3"),
         DimSpec::multipleOf(kStride, "height"), DimSpec::multipleOf(kStride, "width")},
        inference::ElementType::kFloat32});
   signature.outputs.push_back({options.scores_output,
@@ -92,9 +108,10 @@ inference::ModelSignature SuperPointExtractor::signature(const SuperPointOptions
 SuperPointExtractor::SuperPointExtractor(const SuperPointOptions& options)
     : options_(options), model_(loadModel(options)) {
   size_multiple_ = effectiveSizeMultiple(options_, model_);
+  input_channels_ = inputChannelsOf(model_);
   if (!options_.warmup_size.empty()) {
     const auto fit = planFit(options_.warmup_size, size_multiple_, options_.fit);
-    model_.warmUp({{1, 1, fit.network.height, fit.network.width}});
+    model_.warmUp({{1, input_channels_, fit.network.height, fit.network.width}});
   }
 }
 
@@ -107,14 +124,19 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
   const cv::Mat fitted = applyFit(gray, fit);
 
   const int H = fit.network.height, W = fit.network.width;
-  input_.resize(static_cast<std::size_t>(H) * W);
+  const std::size_t plane = static_cast<std::size_t>(H) * W;
+  input_.resize(plane * static_cast<std::size_t>(input_channels_));
   for (int y = 0; y < H; ++y) {
     const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
     float* dst = input_.data() + static_cast<std::size_t>(y) * W;
     for (int x = 0; x < W; ++x)
       dst[x] = static_cast<float>(src[x]) / 255.0f;
   }
-  const auto outputs = model_.run({{input_.data(), {1, 1, H, W}}});
+  for (int c = 1; c < input_channels_; ++c) {
+    std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
+              input_.begin() + static_cast<std::ptrdiff_t>(c * plane));
+  }
+  const auto outputs = model_.run({{input_.data(), {1, input_channels_, H, W}}});
   const DenseMap semi =
       denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);
   const DenseMap desc =

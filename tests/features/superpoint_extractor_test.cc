@@ -262,13 +262,42 @@ TEST(SuperPointExtractorTest, WrongOutputNamesAndOptionsAreRejected) {
   expectError([&] { extractor.extract(cv::Mat(8, 8, CV_16UC1, cv::Scalar(0))); }, {"CV_8UC1"});
 }
 
-TEST(SuperPointExtractorTest, AColourModelIsRejectedWithAClearMessage) {
+TEST(SuperPointExtractorTest, AModelOfAnotherContractIsRejectedWithAClearMessage) {
   SUPERDYNA_REQUIRE_SHARED(xfeat, "models/xfeat.onnx");
   SuperPointOptions options;
   options.model = xfeat.string();
   expectError([&] { SuperPointExtractor{options}; },
-              {"xfeat.onnx", "does not fit the SuperPoint contract", "input 'input'",
-               "dimension 1 (channels) is 3, expected 1"});
+              {"xfeat.onnx", "does not fit the SuperPoint contract", "output 'semi' missing"});
+}
+
+TEST(SuperPointExtractorTest, SuperPointOptimizedTakesTheGrayImageInItsThreeColourChannels) {
+  SUPERDYNA_REQUIRE_SHARED(model, "models/superpoint_optimized.onnx");
+  SuperPointOptions options;
+  options.model = model.string();
+  SuperPointExtractor extractor(options);
+  EXPECT_EQ(extractor.inputChannels(), 3);
+  // The same texture shifted by (16, 8) px: the keypoints must move with it.
+  const cv::Mat big = syntheticImage(400, 320, 7);
+  const cv::Mat a = big(cv::Rect(16, 8, 352, 288)).clone();
+  const cv::Mat b = big(cv::Rect(0, 0, 352, 288)).clone();
+  const FeatureSet fa = extractor.extract(a), fb = extractor.extract(b);
+  fa.validate();
+  ASSERT_GT(fa.size(), 200u);
+  EXPECT_EQ(fa.descriptorLength(), 256);
+  for (int i = 0; i < fa.descriptors.rows; ++i)
+    ASSERT_NEAR(cv::norm(fa.descriptors.row(i)), 1.0, 1e-4);
+  std::size_t repeated = 0, inside = 0;
+  for (const Keypoint& k : fa.keypoints) {
+    const Eigen::Vector2d expected = k.pixel + Eigen::Vector2d(16.0, 8.0);
+    if (expected.x() < 12 || expected.y() < 12 || expected.x() > 340 || expected.y() > 276)
+      continue;
+    ++inside;
+    repeated += std::any_of(fb.keypoints.begin(), fb.keypoints.end(),
+                            [&](const Keypoint& o) { return (o.pixel - expected).norm() <= 1.5; });
+  }
+  std::cout << "superpoint_optimized: " << fa.size() << " keypoints, " << repeated << " of "
+            << inside << " found again 1.5 px from their shifted position\n";
+  EXPECT_GT(static_cast<double>(repeated), 0.6 * static_cast<double>(inside));
 }
 
 TEST(SuperPointExtractorTest, ModelComposedFromXFeatKeepsXFeatsOutputs) {

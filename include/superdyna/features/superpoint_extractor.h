@@ -1,9 +1,10 @@
 #pragma once
 // SuperPoint keypoints and descriptors (DeTone, Malisiewicz & Rabinovich, "SuperPoint:
 // Self-Supervised Interest Point Detection and Description", CVPRW 2018) from an ONNX model with
-// SuperPoint's contract: input [1,1,H,W] gray in [0,1] (H, W multiples of 8); outputs `semi`
-// [1,65,H/8,W/8] (cell logits + dustbin) and `desc` [1,D,H/8,W/8] (D = 256 for MagicLeap's
-// weights; any D is accepted).
+// SuperPoint's contract: input [1,1,H,W] gray in [0,1] (H, W multiples of 8), or [1,3,H,W] RGB
+// in [0,1] (models trained on colour, e.g. SuperPoint-Optimized: the gray image goes into all three
+// channels); outputs `semi` [1,65,H/8,W/8] (cell logits + dustbin) and `desc` [1,D,H/8,W/8]
+// (D = 256 for MagicLeap's weights; any D is accepted).
 //
 // SuperPoint weights are not redistributable here: scripts/export_superpoint_onnx.py exports
 // MagicLeap's superpoint_v1.pth; scripts/make_superpoint_from_xfeat.py builds a model with the
@@ -58,7 +59,7 @@ struct SuperPointOptions {
 /// SuperPoint extractor; see the file comment. Deterministic for a given thread count.
 class SuperPointExtractor final : public FeatureExtractor {
  public:
-  /// Loads the model and checks its contract (input [any,1,8k,8k] float; `semi` with 65
+  /// Loads the model and checks its contract (input [any,1 or 3,8k,8k] float; `semi` with 65
   /// channels; `desc` of rank 4): InputError naming the model file and the tensor otherwise.
   explicit SuperPointExtractor(const SuperPointOptions& options = {});
 
@@ -71,6 +72,8 @@ class SuperPointExtractor final : public FeatureExtractor {
   const inference::OnnxModel& model() const { return model_; }
   /// The effective size multiple (options and model metadata).
   int sizeMultiple() const { return size_multiple_; }
+  /// Input channels the model takes: 1 (gray) or 3 (the gray image replicated).
+  int inputChannels() const { return input_channels_; }
   double lastExtractMs() const { return last_extract_ms_; }
   double lastInferenceMs() const { return model_.lastRunMs(); }
 
@@ -82,6 +85,7 @@ class SuperPointExtractor final : public FeatureExtractor {
   SuperPointOptions options_;
   inference::OnnxModel model_;
   int size_multiple_ = 8;
+  int input_channels_ = 1;
   std::vector<float> input_;
   double last_extract_ms_ = 0.0;
 };
