@@ -16,6 +16,7 @@
 #include <optional>
 #include <string>
 
+#include "superdyna/features/alike_extractor.h"
 #include "superdyna/features/orb_extractor.h"
 #include "superdyna/features/stereo_matcher.h"
 #include "superdyna/features/superpoint_extractor.h"
@@ -186,6 +187,55 @@ void BM_SuperPointExtract(benchmark::State& state) {
     benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
 }
 BENCHMARK(BM_SuperPointExtract)->Unit(benchmark::kMillisecond);
+
+/// A shipped model by file name (SUPERDYNA_MODEL_DIR, else ../shared/models).
+fs::path sharedModel(const std::string& name) {
+  return fromEnvironmentOr("SUPERDYNA_MODEL_DIR", fs::path(SUPERDYNA_SHARED_DIR) / "models") / name;
+}
+
+/// SuperPoint-Optimized (3-channel SuperPoint layout) on one EuRoC image, one inference thread.
+void BM_SuperPointOptimizedExtract(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  const fs::path model = sharedModel("superpoint_optimized.onnx");
+  if (!fs::exists(model)) return state.SkipWithError("superpoint_optimized.onnx not found");
+  features::SuperPointOptions options;
+  options.model = model.string();
+  options.runtime.intra_op_threads = 1;
+  features::SuperPointExtractor extractor(options);
+  double network_ms = 0.0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
+    network_ms += extractor.lastInferenceMs();
+  }
+  state.counters["network_ms"] = network_ms / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_SuperPointOptimizedExtract)->Unit(benchmark::kMillisecond);
+
+/// ALIKE variant t / s / n / l (argument 0..3) on one EuRoC image, one inference thread.
+void BM_AlikeExtract(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  static const char* const kVariants[] = {"alike-t.onnx", "alike-s.onnx", "alike-n.onnx",
+                                          "alike-l.onnx"};
+  const fs::path model = sharedModel(kVariants[state.range(0)]);
+  if (!fs::exists(model)) return state.SkipWithError("ALIKE model not found");
+  features::AlikeOptions options;
+  options.model = model.string();
+  options.runtime.intra_op_threads = 1;
+  features::AlikeExtractor extractor(options);
+  double network_ms = 0.0;
+  std::size_t keypoints = 0;
+  for (auto _ : state) {
+    const auto features = extractor.extract(sample->frame.image0);
+    keypoints = features.size();
+    network_ms += extractor.lastInferenceMs();
+  }
+  state.counters["network_ms"] = network_ms / static_cast<double>(state.iterations());
+  state.counters["keypoints"] = static_cast<double>(keypoints);
+  state.SetLabel(kVariants[state.range(0)]);
+}
+BENCHMARK(BM_AlikeExtract)->DenseRange(0, 3)->ArgName("variant")->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -372,8 +372,9 @@ class RunCommand : public Command {
                      "--output holds each frame relative to its keyframe after the keyframes' "
                      "later corrections)");
     sub_->add_option("--features", features_,
-                     "Feature extractor: orb | xfeat | superpoint (overrides features.type)")
-        ->check(CLI::IsMember({"orb", "xfeat", "superpoint"}));
+                     "Feature extractor: orb | xfeat | superpoint | alike (overrides "
+                     "features.type)")
+        ->check(CLI::IsMember({"orb", "xfeat", "superpoint", "alike"}));
     sub_->add_option("--model", model_,
                      "ONNX model of a learned extractor (overrides features.model; a bare name is "
                      "looked up in $SUPERDYNA_MODEL_DIR, then models/)");

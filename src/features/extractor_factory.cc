@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "superdyna/core/error.h"
+#include "superdyna/features/alike_extractor.h"
 #include "superdyna/features/superpoint_extractor.h"
 #include "superdyna/features/xfeat_extractor.h"
 
@@ -37,14 +38,28 @@ SuperPointOptions superPointOptions(const FeatureOptions& options) {
   return superpoint;
 }
 
+AlikeOptions alikeOptions(const FeatureOptions& options) {
+  AlikeOptions alike;
+  alike.model = options.modelName();
+  alike.max_keypoints = options.max_keypoints;
+  if (options.detection_threshold >= 0.0) {
+    alike.score_threshold = static_cast<float>(options.detection_threshold);
+  }
+  if (options.nms_radius_px >= 1) alike.radius = options.nms_radius_px;
+  alike.grid_cell_px = options.grid_cell_px;
+  alike.runtime.intra_op_threads = options.inference_threads;
+  return alike;
+}
+
 }  // namespace
 
 FeatureType parseFeatureType(const std::string& name, const std::string& option) {
   if (name == "orb") return FeatureType::kOrb;
   if (name == "xfeat") return FeatureType::kXFeat;
   if (name == "superpoint") return FeatureType::kSuperPoint;
-  throw OptionError(option,
-                    fmt::format("unknown feature type '{}' (orb | xfeat | superpoint)", name));
+  if (name == "alike") return FeatureType::kAlike;
+  throw OptionError(
+      option, fmt::format("unknown feature type '{}' (orb | xfeat | superpoint | alike)", name));
 }
 
 std::string toString(FeatureType type) {
@@ -55,6 +70,8 @@ std::string toString(FeatureType type) {
       return "xfeat";
     case FeatureType::kSuperPoint:
       return "superpoint";
+    case FeatureType::kAlike:
+      return "alike";
   }
   return "unknown";
 }
@@ -62,7 +79,14 @@ std::string toString(FeatureType type) {
 std::string FeatureOptions::modelName() const {
   if (type == FeatureType::kOrb) return "";
   if (!model.empty()) return model;
-  return type == FeatureType::kXFeat ? "xfeat.onnx" : "superpoint.onnx";
+  switch (type) {
+    case FeatureType::kXFeat:
+      return "xfeat.onnx";
+    case FeatureType::kAlike:
+      return "alike-t.onnx";
+    default:
+      return "superpoint.onnx";
+  }
 }
 
 void FeatureOptions::validate() const {
@@ -104,6 +128,8 @@ std::unique_ptr<FeatureExtractor> makeExtractor(const FeatureOptions& options) {
       return std::make_unique<XFeatExtractor>(xfeatOptions(options));
     case FeatureType::kSuperPoint:
       return std::make_unique<SuperPointExtractor>(superPointOptions(options));
+    case FeatureType::kAlike:
+      return std::make_unique<AlikeExtractor>(alikeOptions(options));
   }
   throw OptionError("features.type", "unknown feature type");
 }

@@ -232,6 +232,37 @@ std::vector<Eigen::Vector2d> refineSubpixel(const cv::Mat& heatmap,
   return refined;
 }
 
+std::vector<Eigen::Vector2d> refineSoftArgmax(const cv::Mat& scores,
+                                              const std::vector<ScoredPixel>& points, int radius,
+                                              float temperature) {
+  if (radius < 0) throw OptionError("radius", fmt::format("must be >= 0, got {}", radius));
+  if (!(temperature > 0.0f)) {
+    throw OptionError("temperature", fmt::format("must be > 0, got {}", temperature));
+  }
+  CV_Assert(scores.type() == CV_32FC1);
+  std::vector<Eigen::Vector2d> refined;
+  refined.reserve(points.size());
+  for (const auto& p : points) {
+    const int x0 = std::max(0, p.x - radius), x1 = std::min(scores.cols - 1, p.x + radius);
+    const int y0 = std::max(0, p.y - radius), y1 = std::min(scores.rows - 1, p.y + radius);
+    float peak = -std::numeric_limits<float>::infinity();
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        peak = std::max(peak, scores.at<float>(y, x));
+    double sum = 0.0, sx = 0.0, sy = 0.0;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double w = std::exp((scores.at<float>(y, x) - peak) / temperature);
+        sum += w;
+        sx += w * x;
+        sy += w * y;
+      }
+    }
+    refined.emplace_back(sx / sum, sy / sum);
+  }
+  return refined;
+}
+
 Eigen::Vector2d pixelToMap(const Eigen::Vector2d& pixel, int stride) {
   return (pixel.array() + 0.5) / stride - 0.5;
 }

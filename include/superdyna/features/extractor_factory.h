@@ -1,7 +1,7 @@
 #pragma once
 // Choice of the front end's feature extractor: ORB (binary descriptors, scale pyramid) or a
-// learned one (XFeat, SuperPoint: float descriptors, one full-resolution level), built from one
-// set of options.
+// learned one (XFeat, SuperPoint, ALIKE: float descriptors, one full-resolution level), built from
+// one set of options.
 
 #include <memory>
 #include <string>
@@ -11,9 +11,9 @@
 
 namespace superdyna::features {
 
-enum class FeatureType { kOrb, kXFeat, kSuperPoint };
+enum class FeatureType { kOrb, kXFeat, kSuperPoint, kAlike };
 
-/// "orb" | "xfeat" | "superpoint"; anything else is an OptionError naming `option`.
+/// "orb" | "xfeat" | "superpoint" | "alike"; anything else is an OptionError naming `option`.
 FeatureType parseFeatureType(const std::string& name, const std::string& option = "features.type");
 std::string toString(FeatureType type);
 
@@ -21,16 +21,17 @@ struct FeatureOptions {
   FeatureType type = FeatureType::kOrb;
   /// Network file of a learned extractor: a bare name is looked up by inference::findModel()
   /// ($SUPERDYNA_MODEL_DIR, then the repository's models/), a path is used as given. Empty:
-  /// the type's default name (xfeat.onnx, superpoint.onnx). Unused by ORB.
+  /// the type's default name (xfeat.onnx, superpoint.onnx, alike-t.onnx). Unused by ORB.
   std::string model;
   OrbOptions orb;  ///< ORB: budget (orb.features), pyramid, FAST thresholds.
   /// Learned extractors: keypoint budget (top-K), >= 1.
   int max_keypoints = 1200;
   /// Learned extractors: heat a keypoint needs, in [0, 1); negative = the extractor's default
-  /// (XFeat 0.05, SuperPoint 0.015).
+  /// (XFeat 0.05, SuperPoint 0.015, ALIKE 0.2).
   double detection_threshold = -1.0;
   /// Learned extractors: non-maximum suppression radius [px] (XFeat: window 2r+1, SuperPoint:
-  /// radius r); negative = the extractor's default (XFeat 2, SuperPoint 4). Learned descriptors
+  /// radius r, ALIKE: window 2r+1 and its soft-argmax window); negative = the extractor's default
+  /// (XFeat 2, SuperPoint 4, ALIKE 2). XFeat's and SuperPoint's descriptors
   /// are sampled from a 1/8-resolution map, so keypoints closer than a cell (8 px) have nearly the
   /// same descriptor: a larger radius keeps them apart for matching by projection.
   int nms_radius_px = -1;

@@ -93,6 +93,14 @@ std::vector<ScoredPixel> selectTopK(std::vector<ScoredPixel> points, int k, int 
 std::vector<Eigen::Vector2d> refineSubpixel(const cv::Mat& heatmap,
                                             const std::vector<ScoredPixel>& points, int radius);
 
+/// Sub-pixel positions of local maxima of `scores` (CV_32FC1) by ALIKE's soft-argmax: the mean
+/// position over the (2 radius + 1)^2 window around each point, clipped to the map, weighted by
+/// exp((score - window maximum) / temperature). Throws OptionError for radius < 0 or
+/// temperature <= 0.
+std::vector<Eigen::Vector2d> refineSoftArgmax(const cv::Mat& scores,
+                                              const std::vector<ScoredPixel>& points, int radius,
+                                              float temperature);
+
 /// Map coordinate (u = column, v = row) of a pixel on a map of stride `stride` (file comment).
 Eigen::Vector2d pixelToMap(const Eigen::Vector2d& pixel, int stride);
 

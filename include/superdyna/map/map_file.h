@@ -45,7 +45,7 @@ std::string toString(MapDescriptorType type);
 
 /// What made the map; a map is only used with the same features and rig.
 struct MapIdentity {
-  std::string feature_type;  ///< "orb" | "xfeat" | "superpoint".
+  std::string feature_type;  ///< "orb" | "xfeat" | "superpoint" | "alike".
   MapDescriptorType descriptor_type = MapDescriptorType::kNone;
   int descriptor_columns = 0;  ///< Bytes (binary) or floats per row.
   std::string sensor_mode;     ///< "stereo" | "stereo-inertial" | "mono" | "mono-inertial".
