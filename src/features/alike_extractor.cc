@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <chrono>
 
 #include "dense_output.h"
@@ -86,18 +85,7 @@ FeatureSet AlikeExtractor::extract(const cv::Mat& gray) {
 
   // [1, 3, H, W]: the gray image in all three channels.
   const int H = fit.network.height, W = fit.network.width;
-  const std::size_t plane = static_cast<std::size_t>(H) * W;
-  input_.resize(3 * plane);
-  for (int y = 0; y < H; ++y) {
-    const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
-    float* dst = input_.data() + static_cast<std::size_t>(y) * W;
-    for (int x = 0; x < W; ++x)
-      dst[x] = static_cast<float>(src[x]) / 255.0f;
-  }
-  for (std::size_t c = 1; c < 3; ++c) {
-    std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
-              input_.begin() + static_cast<std::ptrdiff_t>(c * plane));
-  }
+  grayToNetworkInput(fitted, 3, input_);
   const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
   const DenseMap scores =
       denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);

@@ -2,9 +2,27 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "superdyna/core/error.h"
 
 namespace superdyna::features {
+
+void grayToNetworkInput(const cv::Mat& fitted, int channels, std::vector<float>& input) {
+  const int H = fitted.rows, W = fitted.cols;
+  const std::size_t plane = static_cast<std::size_t>(H) * W;
+  input.resize(plane * static_cast<std::size_t>(channels));
+  for (int y = 0; y < H; ++y) {
+    const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
+    float* dst = input.data() + static_cast<std::size_t>(y) * W;
+    for (int x = 0; x < W; ++x)
+      dst[x] = static_cast<float>(src[x]) / 255.0f;
+  }
+  for (std::size_t c = 1; c < static_cast<std::size_t>(channels); ++c) {
+    std::copy(input.begin(), input.begin() + static_cast<std::ptrdiff_t>(plane),
+              input.begin() + static_cast<std::ptrdiff_t>(c * plane));
+  }
+}
 
 DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name,
                         cv::Size network_input, const std::filesystem::path& model_file,

@@ -5,12 +5,17 @@
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "superdyna/features/feature_set.h"
 #include "superdyna/features/keypoint_decoding.h"
 #include "superdyna/inference/onnx_model.h"
 
 namespace superdyna::features {
+
+/// The 8-bit image `fitted` (network-input size) scaled to [0, 1] as a [1, channels, H, W] input:
+/// the gray image in every channel. `input` is resized to hold it.
+void grayToNetworkInput(const cv::Mat& fitted, int channels, std::vector<float>& input);
 
 /// A view of batch item 0 of `tensor` (NCHW); throws InputError naming `model_file` and the output
 /// when its spatial size is not the network input's divided by `stride`.

@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <chrono>
 #include <numeric>
 
@@ -124,18 +123,7 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
   const cv::Mat fitted = applyFit(gray, fit);
 
   const int H = fit.network.height, W = fit.network.width;
-  const std::size_t plane = static_cast<std::size_t>(H) * W;
-  input_.resize(plane * static_cast<std::size_t>(input_channels_));
-  for (int y = 0; y < H; ++y) {
-    const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
-    float* dst = input_.data() + static_cast<std::size_t>(y) * W;
-    for (int x = 0; x < W; ++x)
-      dst[x] = static_cast<float>(src[x]) / 255.0f;
-  }
-  for (int c = 1; c < input_channels_; ++c) {
-    std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
-              input_.begin() + static_cast<std::ptrdiff_t>(c * plane));
-  }
+  grayToNetworkInput(fitted, input_channels_, input_);
   const auto outputs = model_.run({{input_.data(), {1, input_channels_, H, W}}});
   const DenseMap semi =
       denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);

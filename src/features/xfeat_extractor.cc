@@ -91,19 +91,7 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
 
   // [1, 3, H, W]: the gray image in all three channels (the network averages them).
   const int H = fit.network.height, W = fit.network.width;
-  const std::size_t plane = static_cast<std::size_t>(H) * W;
-  input_.resize(3 * plane);
-  for (int y = 0; y < H; ++y) {
-    const std::uint8_t* src = fitted.ptr<std::uint8_t>(y);
-    float* dst = input_.data() + static_cast<std::size_t>(y) * W;
-    for (int x = 0; x < W; ++x)
-      dst[x] = static_cast<float>(src[x]) / 255.0f;
-  }
-  std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
-            input_.begin() + static_cast<std::ptrdiff_t>(plane));
-  std::copy(input_.begin(), input_.begin() + static_cast<std::ptrdiff_t>(plane),
-            input_.begin() + static_cast<std::ptrdiff_t>(2 * plane));
-
+  grayToNetworkInput(fitted, 3, input_);
   const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
   const DenseMap descriptors =
       denseOutputMap(outputs[0], options_.descriptors_output, fit.network, model_.file(), kStride);
