@@ -7,6 +7,7 @@
 #include <iostream>
 #include <opencv2/imgproc.hpp>
 
+#include "learned_test_image.h"
 #include "superdyna/core/error.h"
 #include "superdyna/features/extractor_factory.h"
 #include "support/test_support.h"
@@ -14,17 +15,7 @@
 namespace superdyna::features {
 namespace {
 
-/// A seeded image with structure at several scales (random blobs, blurred), CV_8UC1.
-cv::Mat texturedImage(int width, int height, std::uint64_t seed) {
-  cv::Mat noise(height / 4, width / 4, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-  cv::Mat image;
-  cv::resize(noise, image, {width, height}, 0, 0, cv::INTER_CUBIC);
-  cv::Mat fine(height, width, CV_8UC1);
-  rng.fill(fine, cv::RNG::UNIFORM, 0, 40);
-  return image + fine;
-}
+using test::syntheticImage;
 
 /// A score map holding one Gaussian peak centred at (cx, cy), sigma 1.2 px.
 cv::Mat gaussianPeak(double cx, double cy) {
@@ -80,7 +71,7 @@ TEST(AlikeExtractorTest, XFeatIsRejectedWithAClearMessage) {
 /// Every shipped variant: unit descriptors of the variant's width, keypoints that move with the
 /// image to within a pixel (sub-pixel positions), most of them found again.
 TEST(AlikeExtractorTest, ShippedVariantsFindTheSameKeypointsInAShiftedImage) {
-  const cv::Mat big = texturedImage(420, 340, 9);
+  const cv::Mat big = syntheticImage(420, 340, 9);
   const cv::Mat a = big(cv::Rect(13, 7, 384, 320)).clone();
   const cv::Mat b = big(cv::Rect(0, 0, 384, 320)).clone();
   const Eigen::Vector2d shift(13.0, 7.0);

@@ -9,6 +9,7 @@
 #include <map>
 #include <opencv2/imgproc.hpp>
 
+#include "learned_test_image.h"
 #include "superdyna/core/error.h"
 #include "superdyna/features/stereo_matcher.h"
 #include "superdyna/features/xfeat_matcher.h"
@@ -41,17 +42,7 @@ void makeModel(const std::string& arguments) {
     GTEST_SKIP() << "Debian's python3-onnx is not installed (apt-get install python3-onnx)"; \
   }
 
-/// A seeded image with structure at several scales (random blobs, blurred), CV_8UC1.
-cv::Mat syntheticImage(int width, int height, std::uint64_t seed) {
-  cv::Mat noise(height / 4, width / 4, CV_8UC1);
-  cv::RNG rng(seed);
-  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-  cv::Mat image;
-  cv::resize(noise, image, {width, height}, 0, 0, cv::INTER_CUBIC);
-  cv::Mat fine(height, width, CV_8UC1);
-  rng.fill(fine, cv::RNG::UNIFORM, 0, 40);
-  return image + fine;
-}
+using test::syntheticImage;
 
 // ------------------------------------------------------------------------------------------------
 // A plain reference of SuperPoint's decoding, written out step by step from the description in
