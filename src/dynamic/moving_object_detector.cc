@@ -103,6 +103,8 @@ void MovingObjectOptions::validate() const {
   };
   require(min_pairs >= 1, "min_pairs", "must be >= 1");
   require(max_tested_pairs >= 1, "max_tested_pairs", "must be >= 1");
+  require(max_pedestrian_speed_mps > 0.0, "max_pedestrian_speed_mps", "must be > 0");
+  require(max_vehicle_speed_mps > 0.0, "max_vehicle_speed_mps", "must be > 0");
   require(threshold_scale > 0.0, "threshold_scale", "must be > 0");
   require(min_threshold_px > 0.0, "min_threshold_px", "must be > 0");
   require(fallback_threshold_px > 0.0, "fallback_threshold_px", "must be > 0");
@@ -310,16 +312,38 @@ std::vector<MovingObjectDetector::Link> MovingObjectDetector::testableLinks(
   return inner.empty() ? links : inner;
 }
 
+std::vector<MovingObjectDetector::Link> MovingObjectDetector::plausibleLinks(
+    const std::vector<Link>& links, const FrameObservations& current, const Baseline& baseline,
+    int class_id) const {
+  if (!(baseline.dt_s > 0.0)) return links;
+  const double max_speed = class_id == features::kClassPedestrian
+                               ? options_.max_pedestrian_speed_mps
+                               : options_.max_vehicle_speed_mps;
+  std::vector<Link> plausible;
+  plausible.reserve(links.size());
+  for (const Link& link : links) {
+    if (link.from.has_depth) {
+      const Eigen::Vector3d p_cur = baseline.T_cur_from * link.from.p;
+      const auto residual = reprojectionDistancePx(
+          link.from.p, (*current.normalized)[static_cast<std::size_t>(link.current)],
+          baseline.T_cur_from, focal_px_);
+      // The motion across the ray at the point's depth: a lower bound of its speed.
+      if (residual && *residual / focal_px_ * p_cur.z() > max_speed * baseline.dt_s) continue;
+    }
+    plausible.push_back(link);
+  }
+  return plausible;
+}
+
 void MovingObjectDetector::testObject(const std::vector<Link>& links,
-                                      const FrameObservations& current, const SE3d& T_cur_from,
-                                      const Thresholds& thresholds, std::uint64_t draw_seed,
-                                      ObjectDecision& decision) const {
-  const std::vector<Link> drawn =
-      drawSubset(testableLinks(links, current), static_cast<std::size_t>(options_.max_tested_pairs),
-                 draw_seed);
+                                      const FrameObservations& current, const Baseline& baseline,
+                                      std::uint64_t draw_seed, ObjectDecision& decision) const {
+  const std::vector<Link> drawn = drawSubset(
+      testableLinks(plausibleLinks(links, current, baseline, decision.class_id), current),
+      static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
   double worst_excess = -std::numeric_limits<double>::infinity();
   for (const Link& link : drawn) {
-    const auto tested = linkResidual(link, current, T_cur_from, thresholds);
+    const auto tested = linkResidual(link, current, baseline.T_cur_from, baseline.thresholds);
     if (!tested) continue;
     const auto [residual, threshold] = *tested;
     ++decision.tested;
@@ -511,12 +535,11 @@ void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& p
       // previous frame are tested when it has enough of them.
       const std::vector<Link> chained = chainedLinksOf(found->second);
       if (static_cast<int>(chained.size()) >= options_.min_pairs) {
-        testObject(chained, current, two->T_cur_from, two->thresholds, seed, object);
+        testObject(chained, current, *two, seed, object);
         continue;
       }
     }
-    testObject(linksOf(found->second, previous), current, one.T_cur_from, one.thresholds, seed,
-               object);
+    testObject(linksOf(found->second, previous), current, one, seed, object);
   }
 }
 
@@ -530,6 +553,7 @@ void MovingObjectDetector::rememberAncestors(const std::vector<Pair>& pairs,
   }
   ancestors_ = std::move(next);
   T_previous_ = T_cur_prev;
+  ancestors_t_ns_ = previous.t_ns;
   has_ancestors_ = true;
 }
 
@@ -608,9 +632,10 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
         pairs_of[keypoints[pair.current].instance_id].push_back(pair);
         all_pairs.push_back(pair);
       }
-      testObjects(pairs_of, *previous, current, Baseline{T, thresholds},
-                  two_step ? std::optional<Baseline>(Baseline{T2, thresholds2}) : std::nullopt,
-                  objects);
+      const Baseline one{T, thresholds, nsToSeconds(current.t_ns - previous->t_ns)};
+      const Baseline two{T2, thresholds2, nsToSeconds(current.t_ns - ancestors_t_ns_)};
+      testObjects(pairs_of, *previous, current, one,
+                  two_step ? std::optional<Baseline>(two) : std::nullopt, objects);
     }
     rememberAncestors(all_pairs, *previous, current, T);
   } else {

@@ -238,6 +238,8 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"background_radius_px", &t.dynamic.background_radius_px},
         {"object_search_radius_px", &t.dynamic.object_search_radius_px},
         {"match_ratio", &t.dynamic.match_ratio},
+        {"max_pedestrian_speed_mps", &t.dynamic.max_pedestrian_speed_mps},
+        {"max_vehicle_speed_mps", &t.dynamic.max_vehicle_speed_mps},
         {"max_hamming", &t.dynamic.max_hamming},
         {"max_l2_distance", &t.dynamic.max_l2_distance},
         {"seed", &t.dynamic.seed},

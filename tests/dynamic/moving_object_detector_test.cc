@@ -106,6 +106,18 @@ class Scene {
   }
   /// Keypoints of `instance` are found at `octave` (and located with that octave's noise).
   void setOctave(int instance, int octave) { octave_of_[instance] = octave; }
+  /// Three pedestrians' points spread over 1.2 m, 6 m ahead of the first camera (a small group
+  /// the segmenter gives one mask).
+  void addSmallGroup(int instance) {
+    addBox(instance, features::kClassPedestrian, {-1.0, -0.5, 6.0}, {0.2, 0.5, 6.2}, 3);
+  }
+  /// Swaps the descriptors of the first two points of `instance`: each is matched to the other.
+  void swapTwoDescriptors(int instance) {
+    std::vector<ScenePoint*> on;
+    for (ScenePoint& point : points_)
+      if (point.instance == instance) on.push_back(&point);
+    std::swap(on.at(0)->descriptor, on.at(1)->descriptor);
+  }
   /// New descriptors for every point of `instance`: the next frame's keypoints on it match none
   /// of the last frame's (as when an object comes out from behind another).
   void redescribe(int instance) {
@@ -360,6 +372,34 @@ TEST(MovingObjectDetectorTest, AnObjectWithoutPairsInheritsTheTrackItOverlaps) {
   EXPECT_GT(f2.count(7), 20);
   // Another class nearby does not take it: the standing pedestrian keeps its own track.
   EXPECT_EQ(decisionOf(r2, 3).track_id, decisionOf(r1, 3).track_id);
+}
+
+/// The decision on a standing group of three people two of whose pairs are mismatched (their
+/// descriptors swapped between the frames), with `max_pedestrian_speed_mps`.
+ObjectDecision groupWithTwoMismatches(double max_pedestrian_speed_mps) {
+  Scene scene(6);
+  scene.addSmallGroup(9);
+  MovingObjectOptions options = geometric();
+  options.max_pedestrian_speed_mps = max_pedestrian_speed_mps;
+  MovingObjectDetector detector(options, camera());
+  const SyntheticFrame f0 = scene.observe(cameraPose(0), frameTime(0));
+  detector.detect(nullptr, f0.view(), SE3d());
+  scene.swapTwoDescriptors(9);
+  const SyntheticFrame f1 = scene.observe(cameraPose(1), frameTime(1));
+  return decisionOf(detectAfter(detector, f0, f1, curFromPrev(1)), 9);
+}
+
+TEST(MovingObjectDetectorTest, PairsFasterThanTheClassCanMoveAreMismatchesNotVotes) {
+  // Swapped points lie up to 1.2 m apart: such a pair means 10-25 m/s for a pedestrian.
+  const ObjectDecision ungated = groupWithTwoMismatches(1000.0);
+  EXPECT_EQ(ungated.pairs, 3);
+  EXPECT_EQ(ungated.votes, 2);
+  EXPECT_EQ(ungated.decision, ObjectState::kMoving);
+  const ObjectDecision gated = groupWithTwoMismatches(4.0);
+  EXPECT_EQ(gated.pairs, 3);
+  EXPECT_EQ(gated.tested, 1);
+  EXPECT_EQ(gated.votes, 0);
+  EXPECT_EQ(gated.decision, ObjectState::kStatic);
 }
 
 TEST(MovingObjectDetectorTest, SameInputSameDecisions) {

@@ -93,8 +93,14 @@ struct MovingObjectOptions {
   double background_radius_px = 20.0;      ///< Search radius of background pairs [px], > 0.
   double object_search_radius_px = 120.0;  ///< Search radius of object pairs [px], > 0.
   double match_ratio = 0.8;                ///< Ratio test of both searches, (0, 1].
-  int max_hamming = 64;                    ///< Largest accepted Hamming distance [bits], >= 0.
-  double max_l2_distance = 1.0;            ///< Largest accepted float distance, >= 0.
+  /// Fastest motion of a pedestrian / a vehicle or other movable object [m/s], > 0. A pair whose
+  /// stereo point would have moved faster between the frames (at least its residual over the
+  /// focal length times its depth, over the time between the frames) is a mismatch of the wide
+  /// object search and is not tested.
+  double max_pedestrian_speed_mps = 4.0;
+  double max_vehicle_speed_mps = 40.0;
+  int max_hamming = 64;          ///< Largest accepted Hamming distance [bits], >= 0.
+  double max_l2_distance = 1.0;  ///< Largest accepted float distance, >= 0.
   int seed = 1;  ///< Seeds the draw of tested pairs (mixed with the frame time), >= 0.
   /// 2: objects are tested over two frames where their pairs continue a pair of the last frame
   /// (twice a slow mover's displacement); 1: the last frame only (the paper).
@@ -197,6 +203,7 @@ class MovingObjectDetector {
   struct Baseline {
     SE3d T_cur_from;
     const Thresholds& thresholds;
+    double dt_s = 0.0;  ///< Time between the two frames (<= 0: unknown).
   };
   Endpoint endpointOf(const FrameObservations& frame, int i) const;
   std::vector<Link> linksOf(const std::vector<Pair>& pairs,
@@ -246,8 +253,12 @@ class MovingObjectDetector {
   /// (skip_border_pairs), else all.
   std::vector<Link> testableLinks(const std::vector<Link>& links,
                                   const FrameObservations& current) const;
+  /// The links whose stereo point would have moved faster than the object's class can
+  /// (max_pedestrian_speed_mps, max_vehicle_speed_mps): mismatches of the wide search.
+  std::vector<Link> plausibleLinks(const std::vector<Link>& links, const FrameObservations& current,
+                                   const Baseline& baseline, int class_id) const;
   void testObject(const std::vector<Link>& links, const FrameObservations& current,
-                  const SE3d& T_cur_from, const Thresholds& thresholds, std::uint64_t draw_seed,
+                  const Baseline& baseline, std::uint64_t draw_seed,
                   ObjectDecision& decision) const;
   /// The track of every current instance (`instances`) from its pairs' previous instances;
   /// objects without pairs to a tracked object by overlap (inheritTracksByOverlap).
@@ -275,7 +286,8 @@ class MovingObjectDetector {
   std::map<int, Track> tracks_;
   /// Per keypoint of the last frame: its partner in the frame before (baseline_frames 2).
   std::vector<std::optional<Endpoint>> ancestors_;
-  SE3d T_previous_;  ///< The refined motion of the last frame from the one before.
+  SE3d T_previous_;            ///< The refined motion of the last frame from the one before.
+  TimeNs ancestors_t_ns_ = 0;  ///< Time of the frame the ancestors were seen in.
   bool has_ancestors_ = false;
   std::map<int, int> track_of_previous_instance_;
   int next_track_ = 0;
