@@ -103,6 +103,7 @@ void MovingObjectOptions::validate() const {
   };
   require(min_pairs >= 1, "min_pairs", "must be >= 1");
   require(max_tested_pairs >= 1, "max_tested_pairs", "must be >= 1");
+  require(clear_static_pairs >= 0, "clear_static_pairs", "must be >= 0");
   require(max_pedestrian_speed_mps > 0.0, "max_pedestrian_speed_mps", "must be > 0");
   require(max_vehicle_speed_mps > 0.0, "max_vehicle_speed_mps", "must be > 0");
   require(threshold_scale > 0.0, "threshold_scale", "must be > 0");
@@ -496,6 +497,11 @@ void MovingObjectDetector::inheritTracksByOverlap(const FrameObservations& previ
   }
 }
 
+bool MovingObjectDetector::clearlyStatic(const ObjectDecision& decision) const {
+  return options_.clear_static_pairs > 0 && decision.votes == 0 &&
+         decision.tested >= options_.clear_static_pairs;
+}
+
 void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested_moving) {
   Track& track = tracks_[decision.track_id];
   if (decision.tested > 0) {
@@ -509,7 +515,7 @@ void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested
     } else if (track.state != ObjectState::kMoving && !tested_moving) {
       track.state = ObjectState::kStatic;
     } else if (track.state == ObjectState::kMoving &&
-               track.static_run >= options_.static_confirmations) {
+               (track.static_run >= options_.static_confirmations || clearlyStatic(decision))) {
       track.state = ObjectState::kStatic;
     }
   }

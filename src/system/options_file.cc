@@ -232,6 +232,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"stereo_reprojection", &t.dynamic.stereo_reprojection},
         {"refine_motion", &t.dynamic.refine_motion},
         {"static_confirmations", &t.dynamic.static_confirmations},
+        {"clear_static_pairs", &t.dynamic.clear_static_pairs},
         {"moving_confirmations", &t.dynamic.moving_confirmations},
         {"drop_unverified", &t.dynamic.drop_unverified},
         {"cull_points_by_instance", &t.dynamic.cull_points_by_instance},

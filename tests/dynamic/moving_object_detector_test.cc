@@ -285,6 +285,7 @@ TEST(MovingObjectDetectorTest, HysteresisNeedsTwoFramesToChangeAVerifiedState) {
   // seen one frame later).
   MovingObjectOptions options = geometric();
   options.baseline_frames = 1;
+  options.clear_static_pairs = 0;  // the plain two-frame rule
   MovingObjectDetector detector(options, camera());
   std::vector<SyntheticFrame> frames{scene.observe(cameraPose(0), frameTime(0))};
   std::vector<MovingObjectReport> reports{detector.detect(nullptr, frames[0].view(), SE3d())};
@@ -302,6 +303,38 @@ TEST(MovingObjectDetectorTest, HysteresisNeedsTwoFramesToChangeAVerifiedState) {
   EXPECT_EQ(state(4, 1), ObjectState::kStatic);  // first moving frame of a static car
   EXPECT_EQ(state(5, 1), ObjectState::kMoving);
   EXPECT_EQ(decisionOf(reports[4], 1).votes, decisionOf(reports[4], 1).tested);
+}
+
+TEST(MovingObjectDetectorTest, AFrameWithEveryTestedPairWithinItsThresholdClearsAStoppedCar) {
+  Scene scene(3);
+  MovingObjectOptions options = geometric();
+  options.baseline_frames = 1;
+  const auto stateAfterStopping = [&](int clear_static_pairs) {
+    options.clear_static_pairs = clear_static_pairs;
+    MovingObjectDetector detector(options, camera());
+    Scene copy = scene;
+    std::vector<SyntheticFrame> frames{copy.observe(cameraPose(0), frameTime(0))};
+    detector.detect(nullptr, frames[0].view(), SE3d());
+    std::vector<ObjectState> states;
+    for (int k = 1; k <= 3; ++k) {
+      if (k <= 2) copy.move(2, Eigen::Vector3d(-0.6, 0.0, 0.0));  // drives, then stops
+      frames.push_back(copy.observe(cameraPose(k), frameTime(k)));
+      const MovingObjectReport report =
+          detectAfter(detector, frames[k - 1], frames[k], curFromPrev(k));
+      states.push_back(decisionOf(report, 2).decision);
+      if (k == 3) {
+        EXPECT_EQ(decisionOf(report, 2).votes, 0);
+      }
+    }
+    return states;
+  };
+  // Frame 3 is the first after the stop: all 10 tested pairs are within their thresholds.
+  EXPECT_EQ(stateAfterStopping(0),
+            (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving,
+                                      ObjectState::kMoving}));
+  EXPECT_EQ(stateAfterStopping(3),
+            (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving,
+                                      ObjectState::kStatic}));
 }
 
 /// Frames (of 2..7) in which car 2, driving slowly (`step` m per frame), is called moving.

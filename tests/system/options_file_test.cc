@@ -117,12 +117,15 @@ dynamic:
   stereo_reprojection: false
   refine_motion: false
   static_confirmations: 3
+  clear_static_pairs: 5
   moving_confirmations: 3
   drop_unverified: false
   cull_points_by_instance: false
   background_radius_px: 25
   object_search_radius_px: 100
   match_ratio: 0.75
+  max_pedestrian_speed_mps: 3.5
+  max_vehicle_speed_mps: 50.0
   max_hamming: 60
   max_l2_distance: 0.9
   seed: 7
@@ -277,7 +280,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 216u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 219u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

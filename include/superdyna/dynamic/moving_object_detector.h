@@ -36,8 +36,9 @@
 //    none; on a simulated parking lot this keeps 1.4 % more of the static objects' keypoints). A
 //    new track takes its first frame's verdict; a static track turns moving after
 //    moving_confirmations moving frames in a row, a moving one static after static_confirmations
-//    static frames in a row; unverified frames keep the state. Keypoints of moving tracks are
-//    dropped, those of never-verified ones too when drop_unverified.
+//    static frames in a row, or at once after a frame in which clear_static_pairs or more pairs
+//    were tested and none exceeded its threshold; unverified frames keep the state. Keypoints of
+//    moving tracks are dropped, those of never-verified ones too when drop_unverified.
 //
 // mode kSemantic drops every movable keypoint (DynaSLAM-style) without testing; kOff drops none.
 //
@@ -83,6 +84,9 @@ struct MovingObjectOptions {
   /// (relative_motion.h); without stereo the prediction is used as it is.
   bool refine_motion = true;
   int static_confirmations = 2;  ///< Static frames in a row that clear a moving track, >= 1.
+  /// A static frame in which at least this many pairs were tested and none exceeded its
+  /// threshold clears a moving track at once (an agent that stopped); 0 = never, >= 0.
+  int clear_static_pairs = 3;
   int moving_confirmations = 2;  ///< Moving frames in a row that set a static track, >= 1.
   bool drop_unverified = true;   ///< Drop objects never verified (new, too few pairs).
   /// The tracker also culls the local map's points whose instance id is that of a moving object:
@@ -274,6 +278,8 @@ class MovingObjectDetector {
   void inheritTracksByOverlap(const FrameObservations& previous, const FrameObservations& current,
                               const SE3d& T_cur_prev, std::set<int>& handed_on,
                               std::map<int, int>& track_of_instance) const;
+  /// A frame's verdict that clears a moving track at once (clear_static_pairs).
+  bool clearlyStatic(const ObjectDecision& decision) const;
   void applyHysteresis(ObjectDecision& decision, bool tested_moving);
   /// Keeps only the tracks of the current frame's objects (an object is followed from one frame
   /// to the next only).
