@@ -329,12 +329,12 @@ TEST(MovingObjectDetectorTest, AFrameWithEveryTestedPairWithinItsThresholdClears
     return states;
   };
   // Frame 3 is the first after the stop: all 10 tested pairs are within their thresholds.
-  EXPECT_EQ(stateAfterStopping(0),
-            (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving,
-                                      ObjectState::kMoving}));
-  EXPECT_EQ(stateAfterStopping(3),
-            (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving,
-                                      ObjectState::kStatic}));
+  EXPECT_EQ(
+      stateAfterStopping(0),
+      (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving, ObjectState::kMoving}));
+  EXPECT_EQ(
+      stateAfterStopping(3),
+      (std::vector<ObjectState>{ObjectState::kMoving, ObjectState::kMoving, ObjectState::kStatic}));
 }
 
 /// Frames (of 2..7) in which car 2, driving slowly (`step` m per frame), is called moving.
