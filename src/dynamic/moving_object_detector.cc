@@ -160,6 +160,16 @@ void MovingObjectDetector::reset() {
   track_of_previous_instance_.clear();
 }
 
+std::optional<Eigen::Vector2d> MovingObjectDetector::staticLanding(
+    const FrameObservations& previous, std::size_t i, const SE3d& T_cur_prev) const {
+  const Eigen::Vector2d& x = (*previous.normalized)[i];
+  if (!finite(x)) return std::nullopt;
+  const Eigen::Vector3d p_cur = previous.hasDepth(i)
+                                    ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
+                                    : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
+  return camera_.project(p_cur);
+}
+
 std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
     const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
     bool movable, bool wide, const std::vector<Pair>& already) const {
@@ -169,12 +179,8 @@ std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
     skip[static_cast<std::size_t>(pair.previous)] = 1;
   std::vector<Eigen::Vector2d> predicted(query.size(), Eigen::Vector2d::Constant(kNaN));
   for (std::size_t i = 0; i < query.size(); ++i) {
-    const Eigen::Vector2d& x = (*previous.normalized)[i];
-    if (isMovable(query.keypoints[i]) != movable || !finite(x) || skip[i]) continue;
-    const Eigen::Vector3d p_cur = previous.hasDepth(i)
-                                      ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
-                                      : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
-    if (const auto pixel = camera_.project(p_cur)) predicted[i] = *pixel;
+    if (isMovable(query.keypoints[i]) != movable || skip[i]) continue;
+    if (const auto pixel = staticLanding(previous, i, T_cur_prev)) predicted[i] = *pixel;
   }
   features::ProjectionMatchOptions search;
   search.radius_px = wide              ? options_.object_search_radius_px
@@ -456,12 +462,7 @@ void MovingObjectDetector::inheritTracksByOverlap(const FrameObservations& previ
     if (!isMovable(before[i]) || handed_on.count(id) || !track_of_previous_instance_.count(id)) {
       continue;
     }
-    const Eigen::Vector2d& x = (*previous.normalized)[i];
-    if (!finite(x)) continue;
-    const Eigen::Vector3d p_cur = previous.hasDepth(i)
-                                      ? Eigen::Vector3d(T_cur_prev * (*previous.p_c)[i])
-                                      : Eigen::Vector3d(T_cur_prev.q * x.homogeneous());
-    const auto pixel = camera_.project(p_cur);
+    const auto pixel = staticLanding(previous, i, T_cur_prev);
     if (!pixel) continue;
     landings[id].class_id = before[i].class_id;
     landings[id].pixels.push_back(*pixel);

@@ -220,6 +220,11 @@ class MovingObjectDetector {
   /// The position uncertainty of a link relative to level 0: scale_factor^octave of its coarser
   /// keypoint.
   double linkScale(const Link& link, const FrameObservations& current) const;
+  /// Where previous keypoint `i` lands in the current image if it stands still: its stereo point
+  /// moved by T_cur_prev, or without depth its bearing rotated; none when it leaves the image or
+  /// its undistortion failed.
+  std::optional<Eigen::Vector2d> staticLanding(const FrameObservations& previous, std::size_t i,
+                                               const SE3d& T_cur_prev) const;
   /// Pairs of the previous frame's background (`movable` false) or object keypoints, searched
   /// around where a static point lands within background_radius_px or, `wide`,
   /// object_search_radius_px; previous keypoints in `already` are not searched again.
