@@ -5,6 +5,7 @@
 // the exact index costs the same whatever they hold (the graph index about the same). Second
 // argument: loop.database_hnsw_search (0 = exact). A keyframe every 0.5 s is 3600 keyframes in a
 // 30-minute sequence.
+// BM_AddOrb: the cost of indexing a keyframe (a graph index links every new descriptor).
 // Usage: build/bin/superdyna_loop_bench [benchmark options]
 
 #include <benchmark/benchmark.h>
@@ -66,6 +67,30 @@ void query(benchmark::State& state, int type, int cols) {
   state.counters["index_MB"] = static_cast<double>(db.descriptorBytes()) / 1e6;
 }
 
+/// Indexing one keyframe's place descriptors into a database of state.range(0) keyframes (its own
+/// database: each iteration adds a keyframe, a few percent of the map over the run).
+void add(benchmark::State& state, int type, int cols) {
+  const int keyframes = static_cast<int>(state.range(0));
+  superdyna::loop::KeyFrameDatabaseOptions options;
+  options.hnsw_search = static_cast<int>(state.range(1));
+  KeyFrameDatabase db(options);
+  std::mt19937 rng(3);
+  for (int k = 0; k < keyframes; ++k)
+    db.add(k, randomRows(type, cols, rng));
+  int next = keyframes;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const cv::Mat rows = randomRows(type, cols, rng);
+    state.ResumeTiming();
+    db.add(next++, rows);
+  }
+  state.counters["keyframes"] = keyframes;
+}
+
+void BM_AddOrb(benchmark::State& state) {
+  add(state, CV_8UC1, 32);
+}
+
 void BM_QueryOrb(benchmark::State& state) {
   query(state, CV_8UC1, 32);
 }
@@ -79,6 +104,7 @@ void BM_QuerySuperPoint(benchmark::State& state) {
 BENCHMARK(BM_QueryOrb)
     ->ArgsProduct({{100, 400, 1600, 3600}, {0, 16, 64}})
     ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_AddOrb)->ArgsProduct({{100, 400, 1600}, {0, 64}})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_QueryXFeat)
     ->ArgsProduct({{100, 400, 1600, 3600}, {0, 16, 64}})
     ->Unit(benchmark::kMillisecond);
