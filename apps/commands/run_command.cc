@@ -69,9 +69,10 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
   fmt::print(
       "pipeline: concurrent, {:.1f} FPS wall clock over {:.2f} s; thread CPU time (share of the "
       "wall clock): front end {}, extraction helper {}, segmentation {}, tracking {}, local "
-      "mapping {}\n",
+      "mapping {}, loop closing {}\n",
       t.framesPerSecond(), t.wall_s, busy(t.busy.front_end_ms), busy(t.busy.extraction_helper_ms),
-      busy(t.busy.segmentation_ms), busy(t.busy.tracking_ms), busy(t.busy.mapping_ms));
+      busy(t.busy.segmentation_ms), busy(t.busy.tracking_ms), busy(t.busy.mapping_ms),
+      busy(t.busy.loop_ms));
 }
 
 void printSegmentation(const system::TimingSummary& t) {
@@ -313,13 +314,15 @@ void printLoops(const system::System& slam, const Trajectory& gt) {
     return loops.keyframes > 0 ? ms / static_cast<double>(loops.keyframes) : 0.0;
   };
   fmt::print(
-      "loop closing: {} loops accepted ({} keyframes queried, {} candidates verified, rejected: "
-      "{} too few matches, {} no transform, {} too few inliers, {} tilted); per keyframe: "
+      "loop closing: {} loops accepted ({} keyframes queried, {} skipped while the loop thread "
+      "was busy, {} candidates verified, rejected: "
+      "{} too few matches, {} no transform, {} too few inliers, {} tilted; {} verified loops "
+      "not applied); per keyframe: "
       "detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion {:.1f} ms "
       "per loop; index {} descriptors ({:.1f} MB)\n",
-      loops.loops.size(), loops.keyframes, loops.verifications, loops.rejected[0],
-      loops.rejected[1], loops.rejected[2], loops.rejected[3], perKeyFrame(loops.detection_ms),
-      perKeyFrame(loops.verification_ms),
+      loops.loops.size(), loops.keyframes, loops.skipped, loops.verifications, loops.rejected[0],
+      loops.rejected[1], loops.rejected[2], loops.rejected[3], loops.loops_dropped,
+      perKeyFrame(loops.detection_ms), perKeyFrame(loops.verification_ms),
       loops.loops.empty() ? 0.0 : loops.correction_ms / static_cast<double>(loops.loops.size()),
       loops.index_descriptors, static_cast<double>(loops.index_bytes) / 1e6);
   int false_loops = 0;

@@ -44,15 +44,6 @@ struct LoopCloser::Candidate {
   double group_score = 0.0;
 };
 
-struct LoopCloser::Verified {
-  map::KeyFrameId match = map::kNoKeyFrame;
-  SE3d T_w_b_query;  ///< The query keyframe's pose in the loop's frame.
-  std::vector<map::KeyFrameId> loop_group;
-  /// Inlier matches: query keypoint index -> loop map point.
-  std::vector<std::pair<int, map::MapPointId>> matches;
-  int inliers = 0;
-};
-
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -195,6 +186,16 @@ void LoopCloser::reset() {
 }
 
 LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bool inertial) {
+  LoopStep step = findLoop(map, keyframe, inertial);
+  if (!step.found) return step;
+  const auto start = Clock::now();
+  step.closure = closeLoop(map, *step.found, inertial);
+  step.correction_ms = millisecondsSince(start);
+  step.found.reset();
+  return step;
+}
+
+LoopStep LoopCloser::findLoop(const map::Map& map, map::KeyFrameId keyframe, bool inertial) {
   LoopStep step;
   if (!options_.enabled) return step;
   const std::optional<map::KeyFrame> query = map.keyFrame(keyframe);
@@ -208,36 +209,40 @@ LoopStep LoopCloser::processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bo
   const std::vector<Candidate> consistent = consistentCandidates(map, candidates);
   step.detection_ms = millisecondsSince(start);
   start = Clock::now();
-  std::optional<Verified> verified;
   for (const Candidate& candidate : consistent) {
     if (step.candidates >= options_.max_candidates) break;
     ++step.candidates;
     Rejection rejection = Rejection::kTooFewMatches;
-    verified = verify(map, *query, candidate.id, inertial, rejection);
-    if (verified) break;
+    step.found = verify(map, *query, candidate.id, inertial, rejection);
+    if (step.found) break;
     ++step.rejected[static_cast<int>(rejection)];
   }
   step.verification_ms = millisecondsSince(start);
-  if (!verified) return step;
-  start = Clock::now();
-  LoopClosure closure;
-  closure.query = keyframe;
-  closure.match = verified->match;
-  closure.query_t_ns = query->t_ns;
-  map.readKeyFrame(verified->match, [&](const map::KeyFrame& kf) { closure.match_t_ns = kf.t_ns; });
-  closure.inliers = verified->inliers;
-  closure.correction = verified->T_w_b_query * query->T_w_b.inverse();
-  correct(map, *query, *verified, inertial);
-  if (options_.fuse) fuseLoop(map, *query, *verified);
-  const std::optional<SE3d> T_w_match = map.keyFramePose(verified->match);
-  const std::optional<SE3d> T_w_query = map.keyFramePose(keyframe);
-  if (T_w_match && T_w_query) closure.T_match_query = T_w_match->inverse() * *T_w_query;
-  step.correction_ms = millisecondsSince(start);
-  step.closure = closure;
+  if (!step.found) return step;
   groups_.clear();
   keyframes_since_loop_ = 0;
   had_loop_ = true;
   return step;
+}
+
+std::optional<LoopClosure> LoopCloser::closeLoop(map::Map& map, const VerifiedLoop& loop,
+                                                 bool inertial) {
+  LoopClosure closure;
+  closure.query = loop.query;
+  closure.match = loop.match;
+  closure.inliers = loop.inliers;
+  const bool found = map.readKeyFrame(loop.query, [&](const map::KeyFrame& kf) {
+    closure.query_t_ns = kf.t_ns;
+    closure.correction = loop.T_w_b_query * kf.T_w_b.inverse();
+  }) && map.readKeyFrame(loop.match, [&](const map::KeyFrame& kf) {
+    closure.match_t_ns = kf.t_ns;
+  });
+  if (!found || !correct(map, loop, inertial)) return std::nullopt;
+  if (options_.fuse) fuseLoop(map, loop);
+  const std::optional<SE3d> T_w_match = map.keyFramePose(loop.match);
+  const std::optional<SE3d> T_w_query = map.keyFramePose(loop.query);
+  if (T_w_match && T_w_query) closure.T_match_query = T_w_match->inverse() * *T_w_query;
+  return closure;
 }
 
 void LoopCloser::indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId first) {
@@ -352,12 +357,12 @@ std::vector<LoopCloser::Candidate> LoopCloser::consistentCandidates(
   return consistent;
 }
 
-std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
-                                                       const map::KeyFrame& query,
-                                                       map::KeyFrameId candidate, bool inertial,
-                                                       Rejection& rejection) const {
+std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::KeyFrame& query,
+                                               map::KeyFrameId candidate, bool inertial,
+                                               Rejection& rejection) const {
   const map::Map::ReadLock reading = map.readLock();  // one state of the loop's points
-  Verified out;
+  VerifiedLoop out;
+  out.query = query.id;
   out.match = candidate;
   out.loop_group =
       sortedGroup(candidate, map.bestCovisibleKeyFrames(candidate, options_.group_keyframes));
@@ -472,8 +477,7 @@ std::optional<LoopCloser::Verified> LoopCloser::verify(const map::Map& map,
   return out;
 }
 
-void LoopCloser::correct(map::Map& map, const map::KeyFrame& query, const Verified& loop,
-                         bool inertial) {
+bool LoopCloser::correct(map::Map& map, const VerifiedLoop& loop, bool inertial) {
   struct Snapshot {
     SE3d T_w_b;
     map::KeyFrameId previous = map::kNoKeyFrame;
@@ -502,22 +506,22 @@ void LoopCloser::correct(map::Map& map, const map::KeyFrame& query, const Verifi
       }
     }
   }
-  if (!nodes.contains(query.id) || !nodes.contains(loop.match)) return;
+  if (!nodes.contains(loop.query) || !nodes.contains(loop.match)) return false;
   for (const PoseGraphEdge& edge : loop_edges_)
     if (nodes.contains(edge.from) && nodes.contains(edge.to)) edges.push_back(edge);
-  const SE3d C_query = loop.T_w_b_query * nodes.at(query.id).T_w_b.inverse();
+  const SE3d C_query = loop.T_w_b_query * nodes.at(loop.query).T_w_b.inverse();
   std::map<map::KeyFrameId, SE3d> initial;
   for (const auto& [id, node] : nodes)
     initial[id] = node.T_w_b;
   const std::vector<map::KeyFrameId> current =
-      sortedGroup(query.id, map.bestCovisibleKeyFrames(query.id, options_.group_keyframes));
+      sortedGroup(loop.query, map.bestCovisibleKeyFrames(loop.query, options_.group_keyframes));
   for (const map::KeyFrameId id : current)
     if (nodes.contains(id)) initial[id] = C_query * nodes.at(id).T_w_b;
   for (const map::KeyFrameId k : current) {
     if (!nodes.contains(k)) continue;
     for (const map::KeyFrameId l : loop.loop_group) {
       if (!nodes.contains(l) || std::binary_search(current.begin(), current.end(), l)) continue;
-      if (k != query.id && l != loop.match)
+      if (k != loop.query && l != loop.match)
         continue;  // the query to the loop group, its group to the match
       const PoseGraphEdge edge = edgeBetween(l, nodes.at(l).T_w_b, k, initial.at(k));
       edges.push_back(edge);
@@ -558,31 +562,32 @@ void LoopCloser::correct(map::Map& map, const map::KeyFrame& query, const Verifi
   std::stable_sort(record.keyframes.begin(), record.keyframes.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
   map.recordCorrection(std::move(record));
+  return true;
 }
 
-void LoopCloser::fuseLoop(map::Map& map, const map::KeyFrame& query, const Verified& loop) const {
+void LoopCloser::fuseLoop(map::Map& map, const VerifiedLoop& loop) const {
   {
     const map::Map::UpdateLock update = map.updateLock();  // the loop's points, one map update
     for (const auto& [index, point] : loop.matches) {
-      std::optional<map::KeyFrame> now = map.keyFrame(query.id);
+      std::optional<map::KeyFrame> now = map.keyFrame(loop.query);
       if (!now) return;
       const map::MapPointId own = now->map_points[static_cast<std::size_t>(index)];
       if (own == point || !map.hasMapPoint(point)) continue;
       bool observed_elsewhere = false;
       map.readMapPoint(point, [&](const map::MapPoint& p) {
-        observed_elsewhere = p.bad || p.observations.contains(query.id);
+        observed_elsewhere = p.bad || p.observations.contains(loop.query);
       });
       if (observed_elsewhere) continue;
       if (own != map::kNoMapPoint) {
         map.replaceMapPoint(own, point);
       } else {
-        map.addObservation(point, query.id, index);
+        map.addObservation(point, loop.query, index);
       }
       map.updateNormalAndDistances(point);
     }
   }
   std::vector<map::KeyFrameId> group =
-      sortedGroup(query.id, map.bestCovisibleKeyFrames(query.id, options_.group_keyframes));
+      sortedGroup(loop.query, map.bestCovisibleKeyFrames(loop.query, options_.group_keyframes));
   for (const map::KeyFrameId id : group)
     fuser_.fuse(map, id);
 }

@@ -1,9 +1,75 @@
 #include "superdyna/system/loop_stage.h"
 
+#include <chrono>
+#include <utility>
+
 namespace superdyna::system {
 
+namespace {
+
+/// Keyframes that may wait for the loop thread; the next one skips it.
+constexpr std::size_t kMaxWaitingKeyFrames = 2;
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+LoopStage::LoopStage(const loop::LoopClosingOptions& options, const CameraModel& camera0,
+                     const optim::ReprojectionCamera& camera,
+                     const mapping::PointFusionOptions& fusion,
+                     const optim::PoseOptimizerOptions& pose, bool threaded)
+    : closer_(options, camera0, camera, fusion, pose) {
+  if (threaded) worker_ = std::make_unique<MappingWorker>(kMaxWaitingKeyFrames);
+}
+
+LoopStage::~LoopStage() {
+  stop();
+}
+
 bool LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) {
-  const loop::LoopStep step = closer_.processKeyFrame(map, id, inertial);
+  if (!worker_) {
+    loop::LoopStep step = closer_.processKeyFrame(map, id, inertial);
+    const bool corrected = step.closure.has_value();
+    record(step, inertial);
+    return corrected;
+  }
+  map_ = &map;
+  const bool corrected = applyFoundLoop(map);
+  if (worker_->unfinished() >= kMaxWaitingKeyFrames) {
+    const std::lock_guard lock(mutex_);
+    ++summary_.skipped;
+    return corrected;
+  }
+  worker_->submit(
+      [this, &map, id, inertial] { record(closer_.findLoop(map, id, inertial), inertial); });
+  return corrected;
+}
+
+bool LoopStage::applyFoundLoop(map::Map& map) {
+  std::optional<loop::VerifiedLoop> found;
+  bool inertial = false;
+  {
+    const std::lock_guard lock(mutex_);
+    found = std::exchange(found_, std::nullopt);
+    inertial = found_inertial_;
+  }
+  if (!found) return false;
+  const auto start = std::chrono::steady_clock::now();
+  std::optional<loop::LoopClosure> closure = closer_.closeLoop(map, *found, inertial);
+  const std::lock_guard lock(mutex_);
+  summary_.correction_ms += millisecondsSince(start);
+  if (!closure) {
+    ++summary_.loops_dropped;
+    return false;
+  }
+  summary_.loops.push_back(*closure);
+  return true;
+}
+
+void LoopStage::record(const loop::LoopStep& step, bool inertial) {
   const std::lock_guard lock(mutex_);
   ++summary_.keyframes;
   summary_.verifications += static_cast<std::size_t>(step.candidates);
@@ -13,13 +79,33 @@ bool LoopStage::keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial)
   summary_.verification_ms += step.verification_ms;
   summary_.correction_ms += step.correction_ms;
   if (step.closure) summary_.loops.push_back(*step.closure);
+  if (step.found) {
+    if (found_) ++summary_.loops_dropped;  // not applied yet: the newer loop replaces it
+    found_ = step.found;
+    found_inertial_ = inertial;
+  }
   summary_.index_descriptors = closer_.database().numDescriptors();
   summary_.index_bytes = closer_.database().descriptorBytes();
-  return step.closure.has_value();
 }
 
 void LoopStage::mapReset() {
+  if (worker_) worker_->discardPending();  // the loop thread is idle from here on
+  {
+    const std::lock_guard lock(mutex_);
+    found_.reset();
+  }
+  map_ = nullptr;
   closer_.reset();
+}
+
+void LoopStage::finish() {
+  if (!worker_) return;
+  worker_->finish();
+  if (map_ != nullptr) applyFoundLoop(*map_);
+}
+
+void LoopStage::stop() {
+  worker_.reset();
 }
 
 std::vector<map::KeyFrameId> LoopStage::recognizePlace(const tracking::Frame& frame,

@@ -71,6 +71,11 @@ bool MappingWorker::busy() const {
   return unfinished_ > 0;
 }
 
+std::size_t MappingWorker::unfinished() const {
+  const std::lock_guard lock(mutex_);
+  return unfinished_;
+}
+
 void MappingWorker::finish() {
   if (thread_.joinable()) {
     queue_->close();

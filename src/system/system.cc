@@ -137,7 +137,7 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
     const CameraModel camera0 = cam0.cameraModel();
     loop_ = std::make_unique<LoopStage>(options_.loop, camera0,
                                         optim::ReprojectionCamera::from(camera0, cam0.T_b_c),
-                                        fusion, options_.tracker.pose);
+                                        fusion, options_.tracker.pose, !options_.deterministic);
     tracker_.setKeyFrameObserver(loop_.get());
   }
   if (!options_.deterministic) {
@@ -147,7 +147,8 @@ System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
 }
 
 System::~System() {
-  mapping_.reset();  // joins the mapping thread before the tracker its jobs use goes
+  mapping_.reset();          // joins the mapping thread before the tracker its jobs use goes
+  if (loop_) loop_->stop();  // ... and the loop thread before the tracker's map goes
 }
 
 void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
@@ -407,9 +408,11 @@ void System::finish() {
     timings_.total.local_ba_ms += mapping_->busyMs() - mapping_wall_ms_;
     mapping_wall_ms_ = mapping_->busyMs();
     timings_.busy.mapping_ms = mapping_->cpuMs();
+    if (loop_) timings_.busy.loop_ms = loop_->cpuMs();
   };
   try {
     mapping_->finish();
+    if (loop_) loop_->finish();
   } catch (...) {
     account();
     throw;

@@ -625,14 +625,16 @@ std::unique_ptr<map::Map> Tracker::newMap() const {
   return std::make_unique<map::Map>(map_options);
 }
 
-void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
+void Tracker::releaseMap() {
   if (mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
+  if (observer_) observer_->mapReset();                // nor the observer's own threads
+}
+
+void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
+  releaseMap();
   if (map_->numKeyFrames() > 0) ++resets_;
   map_ = newMap();
-  runMapping([this] {
-    mapper_.reset();
-    if (observer_) observer_->mapReset();
-  });
+  runMapping([this] { mapper_.reset(); });
   corrections_followed_ = 0;
   inertial_inits_ = 0;
   failing_ = false;

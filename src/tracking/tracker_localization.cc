@@ -11,12 +11,9 @@
 namespace superdyna::tracking {
 
 void Tracker::localizeIn(std::unique_ptr<map::Map> map, int inertial_stages) {
-  if (mapping_sink_) mapping_sink_->discardPending();
+  releaseMap();
   map_ = std::move(map);
-  runMapping([this] {
-    mapper_.reset();
-    if (observer_) observer_->mapReset();
-  });
+  runMapping([this] { mapper_.reset(); });
   has_map_ = map_->numKeyFrames() > 0;
   localization_only_ = true;
   located_ = false;

@@ -28,11 +28,13 @@
 //    PointFuser runs on the query keyframe's group.
 //
 // Features labelled on movable objects (class_id != 0) neither vote nor take part in the
-// verification. Not thread-safe: one thread calls processKeyFrame (the System runs it where local
-// mapping runs); only recognize() (relocalisation's place recognition) may come from another.
+// verification. Threads: one thread calls processKeyFrame(), or findLoop() in one thread and
+// closeLoop() in another (the System's concurrent pipeline: a loop thread and the mapping
+// thread); recognize() (relocalisation's place recognition) may come from any thread.
 
 #include <mutex>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "superdyna/core/camera_model.h"
@@ -95,11 +97,23 @@ enum class Rejection {
 };
 inline constexpr int kRejectionKinds = 4;
 
-/// What one processKeyFrame() call did, with its stage times [ms].
+/// A loop that passed the geometric verification, not yet applied to the map.
+struct VerifiedLoop {
+  map::KeyFrameId query = map::kNoKeyFrame;
+  map::KeyFrameId match = map::kNoKeyFrame;
+  SE3d T_w_b_query;  ///< The query keyframe's pose in the loop's frame.
+  std::vector<map::KeyFrameId> loop_group;
+  /// Inlier matches: query keypoint index -> loop map point.
+  std::vector<std::pair<int, map::MapPointId>> matches;
+  int inliers = 0;
+};
+
+/// What one processKeyFrame() (or findLoop()) call did, with its stage times [ms].
 struct LoopStep {
   int candidates = 0;                  ///< Consistent groups verified.
   int rejected[kRejectionKinds] = {};  ///< Candidates rejected, by Rejection.
-  std::optional<LoopClosure> closure;
+  std::optional<LoopClosure> closure;  ///< processKeyFrame(): the loop applied.
+  std::optional<VerifiedLoop> found;   ///< findLoop(): the loop verified, to apply.
   double detection_ms = 0.0;
   double verification_ms = 0.0;
   double correction_ms = 0.0;  ///< Pose graph, point correction and fusion.
@@ -115,8 +129,19 @@ class LoopCloser {
              const optim::PoseOptimizerOptions& pose);
 
   /// Detects, verifies and corrects a loop at `keyframe` (a keyframe of `map` local mapping has
-  /// processed). inertial: the map is gravity-aligned (4-DoF correction).
+  /// processed): findLoop() then closeLoop(). inertial: the map is gravity-aligned (4-DoF).
   LoopStep processKeyFrame(map::Map& map, map::KeyFrameId keyframe, bool inertial);
+
+  /// Stages 1 and 2 only (the map is read, not changed): the keyframe joins the database and a
+  /// loop found at it is returned in `found`, to be applied with closeLoop(). After a found loop
+  /// detection rests for keyframes_between_loops keyframes, whether or not it gets applied.
+  LoopStep findLoop(const map::Map& map, map::KeyFrameId keyframe, bool inertial);
+  /// Stage 3: corrects the map with a verified loop (pose graph, points, fusion) and adds its
+  /// edges to later pose graphs. Changes the map: call it where local mapping runs. It may run
+  /// while findLoop() runs in another thread (they share no state); the keyframes may have moved
+  /// a little since the verification (the query keyframe then lands on its verified pose).
+  /// nullopt when the query or the match keyframe has been culled since.
+  std::optional<LoopClosure> closeLoop(map::Map& map, const VerifiedLoop& loop, bool inertial);
 
   /// Forgets the database and the loops (the map was dropped).
   void reset();
@@ -126,13 +151,12 @@ class LoopCloser {
   /// tracker relocalises with it while loop closing runs in the mapping thread.
   std::vector<PlaceScore> recognize(const cv::Mat& rows, int count) const;
 
-  /// The database: read it only from the thread that calls processKeyFrame().
+  /// The database: read it only from the thread that calls processKeyFrame() / findLoop().
   const KeyFrameDatabase& database() const { return database_; }
   const LoopClosingOptions& options() const { return options_; }
 
  private:
   struct Candidate;
-  struct Verified;
   struct Group {
     std::vector<map::KeyFrameId> members;  ///< Sorted.
     int consistency = 0;
@@ -145,11 +169,12 @@ class LoopCloser {
   std::vector<Candidate> consistentCandidates(const map::Map& map,
                                               const std::vector<Candidate>& groups);
   /// The verified loop, or nullopt with `rejection` set.
-  std::optional<Verified> verify(const map::Map& map, const map::KeyFrame& query,
-                                 map::KeyFrameId candidate, bool inertial,
-                                 Rejection& rejection) const;
-  void correct(map::Map& map, const map::KeyFrame& query, const Verified& loop, bool inertial);
-  void fuseLoop(map::Map& map, const map::KeyFrame& query, const Verified& loop) const;
+  std::optional<VerifiedLoop> verify(const map::Map& map, const map::KeyFrame& query,
+                                     map::KeyFrameId candidate, bool inertial,
+                                     Rejection& rejection) const;
+  /// False when the query or the match keyframe is gone (nothing changed).
+  bool correct(map::Map& map, const VerifiedLoop& loop, bool inertial);
+  void fuseLoop(map::Map& map, const VerifiedLoop& loop) const;
 
   LoopClosingOptions options_;
   CameraModel camera0_;

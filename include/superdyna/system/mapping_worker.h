@@ -2,7 +2,7 @@
 // The local-mapping thread of the concurrent System: a MappingSink that runs the tracker's mapping
 // jobs (keyframe registration, local BA, resets) one at a time, in order, in its own thread, fed by
 // a bounded queue. Tracking only waits when the queue is full (or at a map reset), never for a
-// local BA to end.
+// local BA to end. The loop closer's thread (LoopStage) is one too.
 //
 // Errors: an exception of a job stops the thread; the error is rethrown to the tracking thread by
 // the next submit(), discardPending() or finish() (the jobs queued after it are dropped), so a
@@ -38,6 +38,8 @@ class MappingWorker final : public tracking::MappingSink {
   void discardPending() override;
   void waitIdle() override;
   bool busy() const override;
+  /// Jobs submitted and neither finished nor discarded yet (queued or running).
+  std::size_t unfinished() const;
   /// Runs every queued job, then joins the thread. A later submit() starts a new thread.
   void finish();
 

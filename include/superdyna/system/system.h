@@ -8,8 +8,9 @@
 //   gives a bit-identical trajectory;
 // - concurrent (ORB-SLAM style): local mapping runs in its own thread (MappingWorker) fed by a
 //   bounded job queue, so tracking does not wait for local BA; in run() the front end also runs in
-//   its own thread, up to `frame_queue` frames ahead of tracking. Tracking stays in the caller's
-//   thread. Results vary slightly from run to run (local BA ends at different frames).
+//   its own thread, up to `frame_queue` frames ahead of tracking, and loop detection in its own
+//   (LoopStage). Tracking stays in the caller's thread. Results vary slightly from run to run
+//   (local BA ends at different frames).
 // The map is mutex-protected; the LocalMapper is only used by the mapping thread (MappingSink).
 //
 // Monocular frames without a pose (map initialisation) are not recorded; when the tracker rescales
@@ -93,6 +94,7 @@ struct ThreadBusyTimes {
   double segmentation_ms = 0.0;
   double tracking_ms = 0.0;  ///< Tracking and keyframe insertion (plus local BA if sequential).
   double mapping_ms = 0.0;   ///< The mapping thread (concurrent only).
+  double loop_ms = 0.0;      ///< The loop-closing thread (concurrent only).
 };
 
 /// Match counts summed over the processed frames. Cross-class matches pair keypoints (or a map

@@ -248,7 +248,9 @@ class KeyFrameObserver {
   /// ones once every inertial (re-)initialisation stage has run (`inertial` then true). Returns
   /// whether it corrected the map (a loop closure).
   virtual bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) = 0;
-  /// The tracker drops its map: forget everything about it.
+  /// The tracker is about to drop its map: forget everything about it, and return only once no
+  /// thread of the observer uses it any more. Called from the tracking thread while no mapping
+  /// job runs.
   virtual void mapReset() = 0;
   /// Place recognition for relocalisation: the keyframes seen so far whose places look most like
   /// `frame`'s, best first, at most `count` (none by default). Called from the tracking thread
@@ -356,6 +358,8 @@ class Tracker {
   void normalizeMonoScale(map::KeyFrameId first);
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
   std::unique_ptr<map::Map> newMap() const;
+  /// Before map_ is replaced: no mapping job and no observer thread may use it any more.
+  void releaseMap();
   void startMap(const Frame& frame, const SE3d& T_w_b);
   /// A local-map search: the map point tracked by each keypoint of the frame (kNoMapPoint where
   /// none, all of them when tracking failed) and the points projected into the image.
