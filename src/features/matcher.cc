@@ -68,8 +68,10 @@ void requireRatio(double ratio) {
 }  // namespace
 
 // The hardware population count where the CPU has one (chosen once at load time): without it
-// every 64-bit word costs a call into libgcc, 12 % of the moving-object test.
-#if defined(__x86_64__) && defined(__has_attribute)
+// every 64-bit word costs a call into libgcc, 12 % of the moving-object test. Not in
+// ThreadSanitizer builds: the clone's resolver runs while the dynamic loader relocates, before the
+// sanitizer's runtime is up, and its instrumented entry crashes every binary at start.
+#if defined(__x86_64__) && defined(__has_attribute) && !defined(__SANITIZE_THREAD__)
 #if __has_attribute(target_clones)
 __attribute__((target_clones("popcnt", "default")))
 #endif
