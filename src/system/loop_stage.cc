@@ -3,17 +3,14 @@
 #include <chrono>
 #include <utility>
 
+#include "superdyna/core/time.h"
+
 namespace superdyna::system {
 
 namespace {
 
 /// Keyframes that may wait for the loop thread; the next one skips it.
 constexpr std::size_t kMaxWaitingKeyFrames = 2;
-
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-      .count();
-}
 
 }  // namespace
 
