@@ -430,9 +430,10 @@ class RunCommand : public Command {
                    "With --load-map: locate the first frame in the loaded map and track against "
                    "it without changing it (no keyframes, points, bundle adjustment or loop "
                    "closing)");
-    sub_->add_flag("--deterministic", deterministic_,
-                   "Sequential, single-threaded run: bit-identical output for the same input "
-                   "(default: concurrent front end, tracking and local mapping threads)");
+    sub_->add_flag(
+        "--deterministic", deterministic_,
+        "Sequential, single-threaded run: bit-identical output for the same input "
+        "(default: concurrent front end, tracking, local mapping and loop closing threads)");
   }
 
   CLI::App* subcommand() const override { return sub_; }
