@@ -124,12 +124,13 @@ fs::path requireFile(const fs::path& file) {
 CameraList readCameraList(const fs::path& camera_dir, std::vector<std::string>& warnings) {
   CameraList list;
   list.csv = requireFile(camera_dir / "data.csv");
-  for (const TextRow& row : readTextRows(list.csv, Delimiter::kComma)) {
+  forEachTextRow(list.csv, Delimiter::kComma, [&](const TextRow& row) {
     requireFieldCount(row, list.csv, 2, 2);
     const TimeNs t_ns = parseIntegerNs(row.fields[0], row.at(list.csv, "timestamp"));
     if (row.fields[1].empty()) throw InputError(row.at(list.csv, "filename"), "empty file name");
     list.images.push_back({{t_ns, camera_dir / "data" / row.fields[1]}, row.line});
-  }
+    return true;
+  });
   if (list.images.empty()) throw InputError(InputLocation{list.csv}, "no image rows found");
   list.images = inTimeOrder(
       std::move(list.images), [](const ListedImage& image) { return image.ref.t_ns; }, list.csv,
@@ -284,7 +285,7 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& cal
       static_cast<TimeNs>(kImuGapWarningPeriods * static_cast<double>(calibration.periodNs()));
   std::vector<ImuRow> rows;
   std::vector<int> non_finite_lines, saturated_lines;
-  for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
+  forEachTextRow(csv, Delimiter::kComma, [&](const TextRow& row) {
     requireFieldCount(row, csv, 7, 7);
     ImuSample sample;
     sample.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
@@ -301,7 +302,8 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& cal
     } else {
       rows.push_back({sample, row.line});
     }
-  }
+    return true;
+  });
   if (!non_finite_lines.empty()) {
     warnings.push_back(fmt::format("{}: {} row(s) with nan or inf values skipped (lines {})",
                                    csv.string(), non_finite_lines.size(),
@@ -369,7 +371,7 @@ GroundTruthState parseGroundTruthRow(const TextRow& row, const fs::path& csv, bo
 GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
   GroundTruthRows result;
   std::size_t columns = 0;
-  for (const TextRow& row : readTextRows(csv, Delimiter::kComma)) {
+  forEachTextRow(csv, Delimiter::kComma, [&](const TextRow& row) {
     if (columns == 0) {
       requireFieldCount(row, csv, 8);
       columns = row.fields.size();
@@ -381,7 +383,8 @@ GroundTruthRows readGroundTruthCsv(const fs::path& csv) {
       requireIncreasingTime(result.states[result.states.size() - 2].t_ns, result.states.back().t_ns,
                             true, row.at(csv, "timestamp"));
     }
-  }
+    return true;
+  });
   if (result.states.empty()) throw InputError(InputLocation{csv}, "no ground-truth rows found");
   return result;
 }

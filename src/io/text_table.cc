@@ -42,23 +42,33 @@ std::vector<std::string_view> splitFields(std::string_view line, Delimiter delim
   return fields;
 }
 
-std::vector<TextRow> readTextRows(const std::filesystem::path& file, Delimiter delimiter) {
+void forEachTextRow(const std::filesystem::path& file, Delimiter delimiter,
+                    const std::function<bool(const TextRow&)>& visit) {
   std::ifstream in(file);
   if (!in) throw InputError(InputLocation{file}, "cannot open file");
-  std::vector<TextRow> rows;
+  TextRow row;
   std::string line;
   int number = 0;
   while (std::getline(in, line)) {
     ++number;
     const std::string_view content = trim(line);
     if (content.empty() || content.front() == '#') continue;
-    TextRow row;
     row.line = number;
-    row.text = std::string(content);
-    for (std::string_view field : splitFields(content, delimiter))
-      row.fields.emplace_back(field);
-    rows.push_back(std::move(row));
+    row.text.assign(content);
+    const std::vector<std::string_view> fields = splitFields(content, delimiter);
+    row.fields.resize(fields.size());  // keeps the strings' buffers from row to row
+    for (std::size_t i = 0; i < fields.size(); ++i)
+      row.fields[i].assign(fields[i]);
+    if (!visit(row)) return;
   }
+}
+
+std::vector<TextRow> readTextRows(const std::filesystem::path& file, Delimiter delimiter) {
+  std::vector<TextRow> rows;
+  forEachTextRow(file, delimiter, [&rows](const TextRow& row) {
+    rows.push_back(row);
+    return true;
+  });
   return rows;
 }
 

@@ -7,6 +7,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <optional>
 
 #include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
@@ -27,16 +28,6 @@ bool startsWithNumber(const TextRow& row) {
   double value = 0.0;
   const auto [ptr, ec] = std::from_chars(begin, end, value);
   return ec == std::errc() && (ptr == end || *ptr == ',' || *ptr == ' ' || *ptr == '\t');
-}
-
-/// Drops header lines ("scene: market", "timestamp,x,..") that precede the first numeric row.
-/// After the first numeric row every row is data, and a malformed one is an error.
-std::vector<TextRow> dataRows(std::vector<TextRow> rows) {
-  std::size_t first = 0;
-  while (first < rows.size() && !startsWithNumber(rows[first]))
-    ++first;
-  rows.erase(rows.begin(), rows.begin() + static_cast<std::ptrdiff_t>(first));
-  return rows;
 }
 
 void requireIncreasing(const Trajectory& trajectory, const TextRow& row, const fs::path& file) {
@@ -79,23 +70,24 @@ Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment) {
   Trajectory trajectory;
   std::optional<int> segment;
   std::vector<int> segments_seen;
-  for (const TextRow& row : readTextRows(file, Delimiter::kWhitespace)) {
+  forEachTextRow(file, Delimiter::kWhitespace, [&](const TextRow& row) {
     if (isMetadataLine(row)) {
       if (auto n = segmentNumber(row, file)) {
         segment = n;
         segments_seen.push_back(*n);
       }
-      continue;
+      return true;
     }
-    if (trajectory.empty() && !startsWithNumber(row)) continue;  // column-name header line
-    if (wanted_segment && segment != wanted_segment) continue;
+    if (trajectory.empty() && !startsWithNumber(row)) return true;  // column-name header line
+    if (wanted_segment && segment != wanted_segment) return true;
     requireFieldCount(row, file, 8, 8);
     const TimeNs t_ns = parseSecondsField(row.fields[0], row.at(file, "timestamp"));
     const auto v = parseNumbers(row, file, 1, {"tx", "ty", "tz", "qx", "qy", "qz", "qw"});
     const auto q = checkedQuaternion(v[6], v[3], v[4], v[5], row.at(file, "quaternion"));
     trajectory.push_back({t_ns, SE3d(q, Eigen::Vector3d(v[0], v[1], v[2]))});
     requireIncreasing(trajectory, row, file);
-  }
+    return true;
+  });
   if (wanted_segment && trajectory.empty()) {
     throw InputError(InputLocation(file, 0, "seq"),
                      fmt::format("no rows in segment 'seq: {}' (segments found: {})",
@@ -106,14 +98,17 @@ Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment) {
 
 Trajectory readEuroc(const fs::path& file) {
   Trajectory trajectory;
-  for (const TextRow& row : dataRows(readTextRows(file, Delimiter::kComma))) {
+  forEachTextRow(file, Delimiter::kComma, [&](const TextRow& row) {
+    // Header lines ("timestamp,x,..") precede the first numeric row; after it every row is data.
+    if (trajectory.empty() && !startsWithNumber(row)) return true;
     requireFieldCount(row, file, 8);
     const TimeNs t_ns = parseIntegerNs(row.fields[0], row.at(file, "timestamp"));
     const auto v = parseNumbers(row, file, 1, {"p_x", "p_y", "p_z", "q_w", "q_x", "q_y", "q_z"});
     const auto q = checkedQuaternion(v[3], v[4], v[5], v[6], row.at(file, "quaternion"));
     trajectory.push_back({t_ns, SE3d(q, Eigen::Vector3d(v[0], v[1], v[2]))});
     requireIncreasing(trajectory, row, file);
-  }
+    return true;
+  });
   return trajectory;
 }
 
@@ -126,7 +121,7 @@ SE3d parseKittiPose(const TextRow& row, const fs::path& file) {
 Trajectory readKitti(const fs::path& file, const std::optional<fs::path>& times_file) {
   const std::vector<TimeNs> times = times_file ? readTimesFile(*times_file) : std::vector<TimeNs>{};
   Trajectory trajectory;
-  for (const TextRow& row : readTextRows(file, Delimiter::kWhitespace)) {
+  forEachTextRow(file, Delimiter::kWhitespace, [&](const TextRow& row) {
     requireFieldCount(row, file, 12, 12);
     const std::size_t index = trajectory.size();
     if (times_file && index >= times.size()) {
@@ -136,7 +131,8 @@ Trajectory readKitti(const fs::path& file, const std::optional<fs::path>& times_
     const TimeNs t_ns =
         times_file ? times[index] : static_cast<TimeNs>(index) * kKittiDefaultPeriodNs;
     trajectory.push_back({t_ns, parseKittiPose(row, file)});
-  }
+    return true;
+  });
   return trajectory;
 }
 
@@ -176,9 +172,13 @@ std::string toString(TrajectoryFormat format) {
 }
 
 TrajectoryFormat detectTrajectoryFormat(const fs::path& file) {
-  const auto rows = dataRows(readTextRows(file, Delimiter::kWhitespace));
-  if (rows.empty()) throw InputError(InputLocation{file}, "no trajectory rows found");
-  const TextRow& first = rows.front();
+  std::optional<TextRow> first_row;  // the first row that starts with a number
+  forEachTextRow(file, Delimiter::kWhitespace, [&first_row](const TextRow& row) {
+    if (startsWithNumber(row)) first_row = row;
+    return !first_row;
+  });
+  if (!first_row) throw InputError(InputLocation{file}, "no trajectory rows found");
+  const TextRow& first = *first_row;
   if (first.text.find(',') != std::string::npos) return TrajectoryFormat::kEuroc;
   if (first.fields.size() == 12) return TrajectoryFormat::kKitti;
   if (first.fields.size() == 8) return TrajectoryFormat::kTum;
@@ -219,13 +219,14 @@ Trajectory readTrajectory(const fs::path& file) {
 
 std::vector<TimeNs> readTimesFile(const fs::path& file) {
   std::vector<TimeNs> times;
-  for (const TextRow& row : readTextRows(file, Delimiter::kWhitespace)) {
+  forEachTextRow(file, Delimiter::kWhitespace, [&](const TextRow& row) {
     requireFieldCount(row, file, 1, 1);
     const TimeNs t_ns = parseSecondsField(row.fields[0], row.at(file, "time"));
     requireIncreasingTime(times.empty() ? 0 : times.back(), t_ns, !times.empty(),
                           row.at(file, "time"));
     times.push_back(t_ns);
-  }
+    return true;
+  });
   if (times.empty()) throw InputError(InputLocation{file}, "no timestamps found");
   return times;
 }
