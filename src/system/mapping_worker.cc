@@ -4,15 +4,13 @@
 #include <stdexcept>
 #include <utility>
 
+#include "superdyna/core/time.h"
+
 namespace superdyna::system {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double millisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 }  // namespace
 

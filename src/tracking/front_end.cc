@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "superdyna/core/time.h"
+
 namespace superdyna::tracking {
 
 static_assert(sensors::kInstanceClassBackground == features::kClassBackground &&
@@ -17,10 +19,6 @@ static_assert(sensors::kInstanceClassBackground == features::kClassBackground &&
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double millisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 Eigen::Vector2d notANumber() {
   return Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
