@@ -18,6 +18,7 @@
 
 #include "commands/output_files.h"
 #include "superdyna/core/error.h"
+#include "superdyna/core/process_memory.h"
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/io/trajectory_io.h"
@@ -166,23 +167,37 @@ void printMatchCounts(const system::System& slam) {
       slam.numCrossClassMapPoints());
 }
 
-/// Prints a progress line at most about once a second.
+/// Resident memory in MB for the progress line ("?" where /proc is not available).
+std::string residentMegabytes() {
+  const std::optional<std::uint64_t> bytes = residentSetBytes();
+  return bytes ? fmt::format("{:.0f}", static_cast<double>(*bytes) / (1 << 20)) : "?";
+}
+
+/// Prints a progress line at most about once a second: frames, FPS since the start and since the
+/// last line, tracking state, map size and resident memory (bench/memory_soak.sh reads it).
 class ProgressLine {
  public:
   void update(std::size_t frames, std::size_t total, const tracking::TrackingResult& result,
               const system::System& slam) {
     const auto now = Clock::now();
     if (now - last_ < std::chrono::seconds(1)) return;
+    const double recent_fps = static_cast<double>(frames - last_frames_) /
+                              std::chrono::duration<double>(now - last_).count();
     last_ = now;
-    fmt::print("frame {:5d}/{}  {:6.1f} FPS  {:<11}  keyframes {:4d}  points {:6d}\n", frames,
-               total, static_cast<double>(frames) / secondsSince(start_),
-               tracking::toString(result.state), slam.numKeyFrames(), slam.numMapPoints());
+    last_frames_ = frames;
+    fmt::print(
+        "frame {:5d}/{}  {:6.1f} FPS (now {:5.1f})  {:<11}  keyframes {:4d}  points {:6d}  "
+        "RSS {} MB\n",
+        frames, total, static_cast<double>(frames) / secondsSince(start_), recent_fps,
+        tracking::toString(result.state), slam.numKeyFrames(), slam.numMapPoints(),
+        residentMegabytes());
     std::fflush(stdout);
   }
 
  private:
   Clock::time_point start_ = Clock::now();
   Clock::time_point last_ = start_;
+  std::size_t last_frames_ = 0;
 };
 
 /// <stem>_keyframes<extension> next to the frame trajectory.
