@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Quick start, step 2: install dependencies, build, run the whole test suite.
+# Quick start, step 2: install dependencies, build, run the whole test suite (then brief fuzzing,
+# ASan/UBSan and ThreadSanitizer runs: see below).
 # Tests that need ../shared (real data and models beside the checkout) skip with a message when it
 # is absent (fail with SUPERDYNA_REQUIRE_SHARED=1, as in CI); point SUPERDYNA_SHARED_DIR elsewhere to
 # use another copy.
@@ -22,4 +23,10 @@ if [ "$fuzz_seconds" != 0 ]; then
     instance_mask map_file
   # The parser and container tests under ASan + UBSan, in that instrumented build.
   JOBS=${JOBS:-$(nproc)} "$repo_dir/scripts/asan_tests.sh"
+fi
+# The concurrent pipeline under ThreadSanitizer (scripts/tsan.sh --quick: an instrumented build of
+# the libraries and the concurrency tests in build-tsan/, their tests and concurrent `superdyna
+# run`s on a 7 s sequence simulated by the normal build): SUPERDYNA_TSAN=0 skips it.
+if [ "${SUPERDYNA_TSAN:-1}" != 0 ]; then
+  JOBS=${JOBS:-$(nproc)} SIMULATOR="$build_dir/bin/superdyna" "$repo_dir/scripts/tsan.sh" --quick
 fi
