@@ -12,13 +12,13 @@
 #             (OUT_DIR/soak, symbolic links to the lap's images), trajectory and run log
 #   --report  only tabulate the run.log of an earlier run in OUT_DIR
 # Environment: SUPERDYNA (binary, default build/bin/superdyna), MODE (default stereo-inertial),
-#   CONFIG (default configs/euroc_stereo_inertial.yaml, or configs/euroc_stereo.yaml for a mode
-#   without IMU), RUN_ARGS (extra run options, e.g. --deterministic), MAX_GROWTH (percent).
+#   CONFIG (default configs/euroc_<MODE>.yaml), RUN_ARGS (extra run options, e.g.
+#   --deterministic), MAX_GROWTH (percent).
 set -euo pipefail
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 superdyna=${SUPERDYNA:-$repo/build/bin/superdyna}
 if [ $# -lt 1 ]; then
-  sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,16p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 report_only=0
@@ -26,11 +26,7 @@ report_only=0
 out=$1
 laps=${2:-9}
 mode=${MODE:-stereo-inertial}
-case "$mode" in
-  *inertial) default_config=$repo/configs/euroc_stereo_inertial.yaml ;;
-  *) default_config=$repo/configs/euroc_stereo.yaml ;;
-esac
-config=${CONFIG:-$default_config}
+config=${CONFIG:-$repo/configs/euroc_${mode/-/_}.yaml}
 max_growth=${MAX_GROWTH:-20}
 lap_s=210
 mkdir -p "$out"
