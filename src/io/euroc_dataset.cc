@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <set>
+#include <system_error>
 #include <utility>
 
 #include "superdyna/core/error.h"
@@ -162,10 +163,21 @@ void warnAboutDroppedFrames(const CameraList& list, double rate_hz,
       longest.largest_line));
 }
 
+/// Whether `path` is a regular file, without throwing: a path the system cannot look up (a name
+/// over its length limit: fuzz/corpus/euroc_csv/crash_name_too_long) is no image either.
+bool isImageFile(const fs::path& path, std::error_code& error) {
+  return fs::is_regular_file(path, error);
+}
+
 void requireImageExists(const ListedImage& image, const fs::path& csv) {
-  if (fs::is_regular_file(image.ref.path)) return;
+  std::error_code error;
+  if (isImageFile(image.ref.path, error)) return;
+  const bool lookup_failed =
+      error && error != std::errc::no_such_file_or_directory && error != std::errc::not_a_directory;
   throw InputError(InputLocation{csv, image.line, "filename"},
-                   fmt::format("image {} does not exist", image.ref.path.string()));
+                   lookup_failed ? fmt::format("image {} cannot be looked up: {}",
+                                               image.ref.path.string(), error.message())
+                                 : fmt::format("image {} does not exist", image.ref.path.string()));
 }
 
 /// Merges the two time-sorted lists, pairing equal timestamps.
@@ -191,7 +203,8 @@ StereoMatch matchByTimestamp(const CameraList& cam0, const CameraList& cam1) {
 std::string unpairedWarning(const std::vector<const ListedImage*>& unpaired, const fs::path& csv,
                             const char* other_camera, const char* consequence) {
   const auto missing = std::count_if(unpaired.begin(), unpaired.end(), [](const ListedImage* i) {
-    return !fs::is_regular_file(i->ref.path);
+    std::error_code error;
+    return !isImageFile(i->ref.path, error);
   });
   return fmt::format(
       "{}: {} frame(s) have no {} frame with the same timestamp (first at line {}, t_ns {}); {}{}",

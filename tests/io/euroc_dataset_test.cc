@@ -350,6 +350,11 @@ TEST(EurocDatasetTest, RejectsCorruptedCopiesNamingFileLineAndField) {
       {"missing png of a paired cam1 frame",
        [](const fs::path& mav0) { fs::remove(mav0 / "cam1/data/1403715273362142976.png"); },
        {"cam1/data.csv:4 [filename]", "1403715273362142976.png does not exist"}},
+      {"file name over the system's length limit (threw std::filesystem_error before)",
+       [](const fs::path& mav0) {
+         editLine(mav0 / "cam0/data.csv", 3, "1403715273312143104," + std::string(300, 'x'));
+       },
+       {"cam0/data.csv:3 [filename]", "cannot be looked up: File name too long"}},
       {"camera row without file name",
        [](const fs::path& mav0) { editLine(mav0 / "cam0/data.csv", 2, "1403715273262142976"); },
        {"cam0/data.csv:2", "expected 2 fields, found 1"}},
