@@ -163,15 +163,11 @@ void warnAboutDroppedFrames(const CameraList& list, double rate_hz,
       longest.largest_line));
 }
 
-/// Whether `path` is a regular file, without throwing: a path the system cannot look up (a name
-/// over its length limit: fuzz/corpus/euroc_csv/crash_name_too_long) is no image either.
-bool isImageFile(const fs::path& path, std::error_code& error) {
-  return fs::is_regular_file(path, error);
-}
-
+/// The lookup does not throw: a path the system cannot look up (a name over its length limit:
+/// fuzz/corpus/euroc_csv/crash_name_too_long) is an InputError like a missing image.
 void requireImageExists(const ListedImage& image, const fs::path& csv) {
   std::error_code error;
-  if (isImageFile(image.ref.path, error)) return;
+  if (fs::is_regular_file(image.ref.path, error)) return;
   const bool lookup_failed =
       error && error != std::errc::no_such_file_or_directory && error != std::errc::not_a_directory;
   throw InputError(InputLocation{csv, image.line, "filename"},
@@ -203,8 +199,8 @@ StereoMatch matchByTimestamp(const CameraList& cam0, const CameraList& cam1) {
 std::string unpairedWarning(const std::vector<const ListedImage*>& unpaired, const fs::path& csv,
                             const char* other_camera, const char* consequence) {
   const auto missing = std::count_if(unpaired.begin(), unpaired.end(), [](const ListedImage* i) {
-    std::error_code error;
-    return !isImageFile(i->ref.path, error);
+    std::error_code error;  // a path that cannot be looked up counts as missing
+    return !fs::is_regular_file(i->ref.path, error);
   });
   return fmt::format(
       "{}: {} frame(s) have no {} frame with the same timestamp (first at line {}, t_ns {}); {}{}",
