@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 
 #include "superdyna/core/error.h"
@@ -90,6 +91,7 @@ void Preintegration::integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3
   requirePositive(dt_s, "dt_s");
   if (!gyro.allFinite()) throw OptionError("gyro", "must be finite");
   if (!accel.allFinite()) throw OptionError("accel", "must be finite");
+  if (steps_released_) throw std::logic_error("Preintegration::integrate after releaseSteps()");
   steps_.push_back({gyro, accel, dt_s});
   propagate(steps_.back());
 }
@@ -133,18 +135,28 @@ void Preintegration::reset() {
 }
 
 void Preintegration::reintegrate(const Bias& new_linearization_bias) {
+  if (steps_released_) throw std::logic_error("Preintegration::reintegrate after releaseSteps()");
   linearization_bias_ = new_linearization_bias;
   reset();
   for (const Step& step : steps_)
     propagate(step);
 }
 
-bool Preintegration::reintegrateIfBiasMoved(const Bias& bias, const ReintegrationOptions& options) {
+bool Preintegration::biasMovedBeyond(const Bias& bias, const ReintegrationOptions& options) const {
   options.validate();
-  const bool moved = (bias.bg - linearization_bias_.bg).norm() > options.max_gyro_bias_change ||
-                     (bias.ba - linearization_bias_.ba).norm() > options.max_accel_bias_change;
+  return (bias.bg - linearization_bias_.bg).norm() > options.max_gyro_bias_change ||
+         (bias.ba - linearization_bias_.ba).norm() > options.max_accel_bias_change;
+}
+
+bool Preintegration::reintegrateIfBiasMoved(const Bias& bias, const ReintegrationOptions& options) {
+  const bool moved = biasMovedBeyond(bias, options);
   if (moved) reintegrate(bias);
   return moved;
+}
+
+void Preintegration::releaseSteps() {
+  steps_ = {};
+  steps_released_ = true;
 }
 
 void Preintegration::propagate(const Step& step) {

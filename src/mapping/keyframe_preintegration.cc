@@ -36,9 +36,13 @@ const imu::Preintegration* KeyFramePreintegrations::fromPrevious(const map::Map&
     cache_.erase(id);
     return nullptr;
   }
+  // A cached entry of the same link stays while the predecessor's bias is close to its
+  // linearisation bias (first-order corrections); beyond, it is integrated again from the samples
+  // at the new bias, as re-integrating its steps would (the cache keeps no steps: they would
+  // double the IMU samples' memory over the whole map).
   const auto cached = cache_.find(id);
-  if (cached != cache_.end() && cached->second.previous == previous) {
-    cached->second.preintegration.reintegrateIfBiasMoved(*bias_i, reintegration_);
+  if (cached != cache_.end() && cached->second.previous == previous &&
+      !cached->second.preintegration.biasMovedBeyond(*bias_i, reintegration_)) {
     return &cached->second.preintegration;
   }
   std::optional<imu::Preintegration> fresh;
@@ -49,6 +53,7 @@ const imu::Preintegration* KeyFramePreintegrations::fromPrevious(const map::Map&
     cache_.erase(id);
     return nullptr;
   }
+  fresh->releaseSteps();
   cache_.insert_or_assign(id, Entry{previous, std::move(*fresh)});
   return &cache_.at(id).preintegration;
 }

@@ -298,6 +298,19 @@ TEST(PreintegrationTest, ReintegratesOnlyWhenTheBiasMovedFar) {
   ReintegrationOptions bad;
   bad.max_gyro_bias_change = -1.0;
   EXPECT_THROW(pre.reintegrateIfBiasMoved(far, bad), OptionError);
+  EXPECT_THROW(pre.biasMovedBeyond(far, bad), OptionError);
+
+  // Without its steps it keeps every result, and refuses to integrate further or again.
+  const Preintegration kept = pre;
+  pre.releaseSteps();
+  EXPECT_TRUE(pre.steps().empty());
+  EXPECT_EQ(pre.deltaVelocity(), kept.deltaVelocity());
+  EXPECT_EQ(pre.covariance(), kept.covariance());
+  EXPECT_EQ(pre.J_V_ba(), kept.J_V_ba());
+  EXPECT_FALSE(pre.biasMovedBeyond(far));
+  EXPECT_THROW(pre.reintegrate(near), std::logic_error);
+  EXPECT_THROW(pre.integrate(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 0.01),
+               std::logic_error);
 }
 
 // The propagated covariance against the scatter of 4000 noisy simulations (white noise only; the

@@ -127,7 +127,10 @@ class Preintegration {
   void integrateBetween(std::span<const io::ImuSample> samples, TimeNs t0_ns, TimeNs t1_ns);
 
   /// Restarts from the stored steps with a new linearisation bias (exact, not first order).
+  /// Throws std::logic_error after releaseSteps().
   void reintegrate(const Bias& new_linearization_bias);
+  /// Whether `bias` differs from the linearisation bias by more than the thresholds.
+  bool biasMovedBeyond(const Bias& bias, const ReintegrationOptions& options = {}) const;
   /// Re-integrates with `bias` as the new linearisation bias if it differs from the current one by
   /// more than the thresholds; returns whether it did.
   bool reintegrateIfBiasMoved(const Bias& bias, const ReintegrationOptions& options = {});
@@ -149,8 +152,12 @@ class Preintegration {
 
   const Bias& linearizationBias() const { return linearization_bias_; }
   const ImuNoise& noise() const { return noise_; }
-  /// Every step integrated so far (kept for re-integration).
+  /// Every step integrated so far (kept for re-integration; empty after releaseSteps()).
   const std::vector<Step>& steps() const { return steps_; }
+  /// Frees the stored steps (56 bytes per IMU sample) for a holder that can integrate the samples
+  /// again: a long-lived cache over the whole map. The deltas, covariance and Jacobians stay;
+  /// integrating further or re-integrating is then a std::logic_error.
+  void releaseSteps();
 
   /// The deltas corrected to first order for `bias`.
   Eigen::Matrix3d correctedDeltaRotation(const Bias& bias) const;
@@ -169,6 +176,7 @@ class Preintegration {
   Bias linearization_bias_;
   ImuNoise noise_;
   std::vector<Step> steps_;
+  bool steps_released_ = false;
 
   double dt_s_ = 0.0;
   Eigen::Matrix3d dR_ = Eigen::Matrix3d::Identity();
