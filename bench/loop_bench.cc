@@ -5,7 +5,8 @@
 // the exact index costs the same whatever they hold (the graph index about the same). Second
 // argument: loop.database_hnsw_search (0 = exact). A keyframe every 0.5 s is 3600 keyframes in a
 // 30-minute sequence.
-// BM_AddOrb: the cost of indexing a keyframe (a graph index links every new descriptor).
+// All keyframes are in the graph index (hold_s 0, settled). BM_AddOrb: the cost of indexing a
+// keyframe, add() and settle() into the graph (a graph index links every new descriptor).
 // Usage: build/bin/superdyna_loop_bench [benchmark options]
 
 #include <benchmark/benchmark.h>
@@ -15,6 +16,7 @@
 #include <random>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "superdyna/loop/keyframe_database.h"
 
@@ -47,10 +49,15 @@ const KeyFrameDatabase& database(int type, int cols, int keyframes, int hnsw_sea
   if (!slot) {
     superdyna::loop::KeyFrameDatabaseOptions options;
     options.hnsw_search = hnsw_search;
+    options.hold_s = 0.0;
     slot = std::make_unique<KeyFrameDatabase>(options);
     std::mt19937 rng(1);
-    for (int k = 0; k < keyframes; ++k)
-      slot->add(k, randomRows(type, cols, rng));
+    std::vector<superdyna::map::KeyFrameId> ids;
+    for (int k = 0; k < keyframes; ++k) {
+      slot->add(k, 0, randomRows(type, cols, rng));
+      ids.push_back(k);
+    }
+    slot->settle(0, ids);
   }
   return *slot;
 }
@@ -73,16 +80,22 @@ void add(benchmark::State& state, int type, int cols) {
   const int keyframes = static_cast<int>(state.range(0));
   superdyna::loop::KeyFrameDatabaseOptions options;
   options.hnsw_search = static_cast<int>(state.range(1));
+  options.hold_s = 0.0;
   KeyFrameDatabase db(options);
   std::mt19937 rng(3);
-  for (int k = 0; k < keyframes; ++k)
-    db.add(k, randomRows(type, cols, rng));
-  int next = keyframes;
+  std::vector<superdyna::map::KeyFrameId> ids;
+  for (int k = 0; k < keyframes; ++k) {
+    db.add(k, 0, randomRows(type, cols, rng));
+    ids.push_back(k);
+  }
+  db.settle(0, ids);
   for (auto _ : state) {
     state.PauseTiming();
     const cv::Mat rows = randomRows(type, cols, rng);
+    ids.push_back(static_cast<superdyna::map::KeyFrameId>(ids.size()));
     state.ResumeTiming();
-    db.add(next++, rows);
+    db.add(ids.back(), 0, rows);
+    db.settle(0, ids);
   }
   state.counters["keyframes"] = keyframes;
 }

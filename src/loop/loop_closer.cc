@@ -202,6 +202,7 @@ LoopStep LoopCloser::findLoop(const map::Map& map, map::KeyFrameId keyframe, boo
   if (!query || query->descriptors.empty()) return step;
   auto start = Clock::now();
   if (!indexed_earlier_) indexEarlierKeyFrames(map, keyframe);
+  settleDatabase(map, query->t_ns);
   ++keyframes_since_loop_;
   const bool resting = had_loop_ && keyframes_since_loop_ <= options_.keyframes_between_loops;
   std::vector<Candidate> candidates = detect(map, *query);
@@ -250,12 +251,20 @@ void LoopCloser::indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId firs
   for (const map::KeyFrameId id : map.keyFrameIds()) {
     if (id >= first) continue;
     cv::Mat rows;
+    TimeNs t_ns = 0;
     map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
       rows = placeDescriptorRows(kf, options_.database.max_descriptors);
+      t_ns = kf.t_ns;
     });
     const std::lock_guard lock(database_mutex_);
-    database_.add(id, rows);
+    database_.add(id, t_ns, rows);
   }
+}
+
+void LoopCloser::settleDatabase(const map::Map& map, TimeNs now_ns) {
+  const std::vector<map::KeyFrameId> alive = map.keyFrameIds();
+  const std::lock_guard lock(database_mutex_);
+  database_.settle(now_ns, alive);
 }
 
 std::vector<PlaceScore> LoopCloser::recognize(const cv::Mat& rows, int count) const {
@@ -277,7 +286,7 @@ std::vector<LoopCloser::Candidate> LoopCloser::detect(const map::Map& map,
   {
     const std::lock_guard lock(database_mutex_);
     scores = database_.query(rows);
-    database_.add(query.id, rows);
+    database_.add(query.id, query.t_ns, rows);
   }
   std::map<map::KeyFrameId, double> score_of;
   for (const PlaceScore& s : scores)

@@ -18,6 +18,10 @@ void KeyFrameCullingOptions::validate() const {
   if (!(max_gap_inertial_s > 0.0)) {
     throw OptionError("mapping.cull_max_gap_inertial_s", "must be > 0");
   }
+  if (!(max_gap_old_s >= max_gap_inertial_s)) {
+    throw OptionError("mapping.cull_max_gap_old_s", "must be >= cull_max_gap_inertial_s");
+  }
+  if (!(old_after_s > 0.0)) throw OptionError("mapping.cull_old_after_s", "must be > 0");
 }
 
 double redundantPointShare(const map::Map& map, map::KeyFrameId id, int min_observers) {
@@ -64,6 +68,16 @@ std::vector<map::KeyFrameId> newestInChain(const map::Map& map, map::KeyFrameId 
   return ids;
 }
 
+/// The largest predecessor-successor gap the removal of `id` may leave [s] (see the header).
+double maxGapWithout(const map::Map& map, map::KeyFrameId id, bool in_window, TimeNs newest_t_ns,
+                     const KeyFrameCullingOptions& options, const CullingImu& imu) {
+  if (imu.inertial_window == 0 || in_window) return options.max_gap_s;
+  TimeNs t_ns = newest_t_ns;
+  map.readKeyFrame(id, [&](const map::KeyFrame& kf) { t_ns = kf.t_ns; });
+  const bool old = nsToSeconds(newest_t_ns - t_ns) > options.old_after_s;
+  return old ? options.max_gap_old_s : options.max_gap_inertial_s;
+}
+
 /// Time between the predecessor and the successor of `id` [s]; nullopt when either is missing.
 std::optional<double> gapWithout(const map::Map& map, map::KeyFrameId id) {
   map::KeyFrameId previous = map::kNoKeyFrame;
@@ -90,6 +104,8 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, map::KeyFrame
   const std::vector<map::KeyFrameId> protected_ids =
       newestInChain(map, newest, options.keep_newest);
   const std::vector<map::KeyFrameId> window = newestInChain(map, newest, imu.inertial_window);
+  TimeNs newest_t_ns = 0;
+  map.readKeyFrame(newest, [&](const map::KeyFrame& kf) { newest_t_ns = kf.t_ns; });
   std::vector<map::KeyFrameId> candidates =
       map.bestCovisibleKeyFrames(newest, options.max_candidates);
   std::sort(candidates.begin(), candidates.end());
@@ -100,9 +116,7 @@ std::vector<map::KeyFrameId> cullRedundantKeyFrames(map::Map& map, map::KeyFrame
       const std::optional<double> gap = gapWithout(map, id);
       if (!gap) continue;
       const bool in_window = std::ranges::find(window, id) != window.end();
-      const double max_gap =
-          imu.inertial_window > 0 && !in_window ? options.max_gap_inertial_s : options.max_gap_s;
-      if (*gap > max_gap) continue;
+      if (*gap > maxGapWithout(map, id, in_window, newest_t_ns, options, imu)) continue;
     }
     if (redundantPointShare(map, id, options.min_observers) < options.redundancy) continue;
     // One map update: the keyframe and the points only it observed go together.

@@ -140,12 +140,75 @@ TEST(KeyFrameCullingTest, KeepsKeyFramesWhoseRemovalLeavesALongImuGap) {
   EXPECT_FALSE(cullRedundantKeyFrames(visual->map, visual->ids.back(), options).empty());
 }
 
+TEST(KeyFrameCullingTest, KeyFramesLongBehindTheNewestMayLeaveLongerGaps) {
+  // 12 keyframes 5 s apart: removing one leaves 10 s, beyond the 3 s of max_gap_inertial_s.
+  auto scene = makeScene(12, 5'000'000'000);
+  KeyFrameCullingOptions options;
+  options.max_candidates = 20;
+  options.old_after_s = 32.0;
+  options.max_gap_old_s = 10.5;
+  const std::vector<map::KeyFrameId> culled =
+      cullRedundantKeyFrames(scene->map, scene->ids.back(), options, CullingImu{true, 2});
+  ASSERT_FALSE(culled.empty());
+  // Only keyframes made more than 32 s before the newest (55 s): ids 1..4 (5, 10, 15, 20 s);
+  // culled from the oldest on, each removal widens its successor's gap (1 and 3 go, 2 and 4
+  // would then leave 15 s).
+  EXPECT_EQ(culled, (std::vector<map::KeyFrameId>{scene->ids[1], scene->ids[3]}));
+  EXPECT_EQ(scene->map.consistencyError(), "");
+  // With the old tier as short as the inertial one nothing goes.
+  auto again = makeScene(12, 5'000'000'000);
+  options.max_gap_old_s = options.max_gap_inertial_s;
+  EXPECT_TRUE(
+      cullRedundantKeyFrames(again->map, again->ids.back(), options, CullingImu{true, 2}).empty());
+}
+
+TEST(KeyFramePreintegrationsTest, KeepsNoStepsAndIntegratesAgainWhenTheBiasMovedFar) {
+  auto scene = makeScene(3, 100'000'000);
+  const imu::ImuNoise noise;
+  KeyFramePreintegrations cache(noise);
+  const imu::Preintegration* first = cache.fromPrevious(scene->map, scene->ids[2]);
+  ASSERT_NE(first, nullptr);
+  EXPECT_TRUE(first->steps().empty());  // the keyframe's samples are kept once, by the map
+  EXPECT_TRUE(first->linearizationBias().bg.isZero());
+  const Eigen::Vector3d dV_zero = first->deltaVelocity();
+
+  // A small bias change of the predecessor: first-order corrections, the same entry.
+  const Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  scene->map.setKeyFrameInertialState(scene->ids[1], v, Eigen::Vector3d(0.002, 0, 0), v);
+  const imu::Preintegration* near = cache.fromPrevious(scene->map, scene->ids[2]);
+  ASSERT_NE(near, nullptr);
+  EXPECT_TRUE(near->linearizationBias().bg.isZero());
+  EXPECT_EQ(near->deltaVelocity(), dV_zero);
+
+  // Beyond the threshold: integrated again from the samples at the new bias, as re-integrating
+  // the steps would.
+  const imu::Bias far{Eigen::Vector3d(0.05, -0.02, 0.01), Eigen::Vector3d(0.1, 0.0, -0.1)};
+  scene->map.setKeyFrameInertialState(scene->ids[1], v, far.bg, far.ba);
+  const imu::Preintegration* moved = cache.fromPrevious(scene->map, scene->ids[2]);
+  ASSERT_NE(moved, nullptr);
+  EXPECT_EQ(moved->linearizationBias().bg, far.bg);
+  imu::Preintegration expected(imu::Bias{}, noise);
+  expected.integrateBetween(scene->samples, scene->times[1], scene->times[2]);
+  expected.reintegrate(far);
+  EXPECT_TRUE(moved->deltaRotation().isApprox(expected.deltaRotation(), 1e-14));
+  EXPECT_TRUE(moved->deltaVelocity().isApprox(expected.deltaVelocity(), 1e-14));
+  EXPECT_TRUE(moved->deltaPosition().isApprox(expected.deltaPosition(), 1e-14));
+  EXPECT_TRUE(moved->covariance().isApprox(expected.covariance(), 1e-12));
+  EXPECT_TRUE(moved->J_P_bg().isApprox(expected.J_P_bg(), 1e-12));
+}
+
 TEST(KeyFrameCullingTest, RejectsInvalidOptions) {
   KeyFrameCullingOptions options;
   options.redundancy = 0.0;
   EXPECT_THROW(options.validate(), OptionError);
   options = {};
   options.keep_newest = 0;
+  EXPECT_THROW(options.validate(), OptionError);
+  options = {};
+  options.max_gap_old_s = options.max_gap_inertial_s - 0.1;
+  EXPECT_THROW(options.validate(), OptionError);
+  options = {};
+  options.old_after_s = 0.0;
   EXPECT_THROW(options.validate(), OptionError);
 }
 

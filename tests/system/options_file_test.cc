@@ -176,6 +176,8 @@ mapping:
   cull_min_observers: 4
   cull_max_gap_s: 0.6
   cull_max_gap_inertial_s: 2.5
+  cull_max_gap_old_s: 45
+  cull_old_after_s: 20
   inertial: false
   inertial_init_min_keyframes: 12
   inertial_init_min_duration_s: 2.5
@@ -229,6 +231,8 @@ loop:
   database_max_hamming: 55
   database_min_similarity: 0.7
   database_hnsw_search: 24
+  database_hold_s: 6
+  database_max_culled_share: 0.4
   min_time_gap_s: 8
   min_score: 0.03
   group_keyframes: 8
@@ -280,7 +284,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 219u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 223u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

@@ -166,6 +166,8 @@ class LoopCloser {
   /// an inertial map reaches the closer only once its initialisation stages have run, and the
   /// places it saw before must be found again too.
   void indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId first);
+  /// KeyFrameDatabase::settle() with the map's keyframes at the query's time `now_ns`.
+  void settleDatabase(const map::Map& map, TimeNs now_ns);
   std::vector<Candidate> consistentCandidates(const map::Map& map,
                                               const std::vector<Candidate>& groups);
   /// The verified loop, or nullopt with `rejection` set.

@@ -8,7 +8,11 @@
 // keyframe's IMU samples to its successor (so the merged preintegration is that of the
 // concatenated samples), and a keyframe is kept when its removal would leave a gap between its
 // predecessor and successor longer than max_gap_s (before the inertial initialisation, and for
-// the keyframes of the inertial local window) or max_gap_inertial_s (older keyframes, after it).
+// the keyframes of the inertial local window) or max_gap_inertial_s (older keyframes, after it),
+// or max_gap_old_s for keyframes made more than old_after_s before the newest one. The last tier
+// bounds the map of a robot that keeps revisiting a place: with ORB-SLAM3's 3 s rule alone every
+// pass leaves a keyframe per ~3 s forever, while the recent trajectory, which the inertial
+// estimate of the present rests on, keeps its short gaps.
 
 #include <vector>
 
@@ -25,6 +29,10 @@ struct KeyFrameCullingOptions {
   double max_gap_s = 0.5;   ///< Largest predecessor-successor gap after a removal [s], > 0.
   /// Same, after the inertial initialisation, for keyframes older than the inertial window [s].
   double max_gap_inertial_s = 3.0;
+  /// Same, for keyframes made more than old_after_s before the newest one [s], >= 0 and >=
+  /// max_gap_inertial_s.
+  double max_gap_old_s = 60.0;
+  double old_after_s = 30.0;  ///< [s], > 0.
   void validate() const;
   bool operator==(const KeyFrameCullingOptions&) const = default;
 };

@@ -42,6 +42,8 @@ struct LoopSummary {
   double correction_ms = 0.0;         ///< Summed: pose graph, point correction, fusion.
   std::size_t index_descriptors = 0;  ///< Descriptors in the database at the end.
   std::size_t index_bytes = 0;
+  std::size_t index_keyframes = 0;  ///< Keyframes that can receive votes at the end.
+  int index_rebuilds = 0;           ///< Rebuilds of the graph index without culled keyframes.
 };
 
 class LoopStage final : public tracking::KeyFrameObserver {
