@@ -38,8 +38,8 @@ struct KeyFrameDatabaseOptions {
   int max_descriptors = 400;
   int max_hamming = 60;          ///< Binary: neighbours farther than this [bits] do not vote.
   double min_similarity = 0.75;  ///< Float: neighbours with a smaller cosine do not vote.
-  /// Index: 0 = exact search (cost linear in the map: on 2 cores 0.26 s per ORB query at 100
-  /// keyframes, 9 s at 3600, bench/loop_bench.cc); > 0 = a graph index (faiss HNSW, 16 links per
+  /// Index: 0 = exact search (cost linear in the map: 140 ms CPU per ORB query at 400 keyframes,
+  /// bench/loop_bench.cc); > 0 = a graph index (faiss HNSW, 16 links per
   /// descriptor) searched with this candidate-list breadth (efSearch, >= neighbours): cost
   /// logarithmic in the map, nearest neighbours approximate. Built in one thread: deterministic.
   int hnsw_search = 64;
