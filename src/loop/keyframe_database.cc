@@ -100,13 +100,10 @@ struct Neighbour {
   map::KeyFrameId owner = map::kNoKeyFrame;
 };
 
-/// Hamming distances of `query` to each of `n` rows of `bytes` bytes. Built for the CPU's popcount
-/// instruction where it has one (a run-time choice): Debian's faiss is built for the baseline
-/// x86-64, which counts bits in software - its exact binary search took 3x as long here.
-__attribute__((target_clones("popcnt", "default"))) void hammingDistances(const std::uint8_t* query,
-                                                                          const std::uint8_t* rows,
-                                                                          std::size_t n, int bytes,
-                                                                          std::int32_t* out) {
+/// Hamming distances of `query` to each of `n` rows of `bytes` bytes.
+[[gnu::always_inline]] inline void hammingDistancesOf(const std::uint8_t* query,
+                                                      const std::uint8_t* rows, std::size_t n,
+                                                      int bytes, std::int32_t* out) {
   for (std::size_t r = 0; r < n; ++r) {
     const std::uint8_t* row = rows + r * static_cast<std::size_t>(bytes);
     int bits = 0;
@@ -123,6 +120,39 @@ __attribute__((target_clones("popcnt", "default"))) void hammingDistances(const 
     out[r] = bits;
   }
 }
+
+#if defined(__x86_64__) || defined(__i386__)
+/// The same compiled for the CPU's popcount instruction.
+[[gnu::target("popcnt")]] void hammingDistancesPopcnt(const std::uint8_t* query,
+                                                      const std::uint8_t* rows, std::size_t n,
+                                                      int bytes, std::int32_t* out) {
+  hammingDistancesOf(query, rows, n, bytes, out);
+}
+
+void hammingDistancesPortable(const std::uint8_t* query, const std::uint8_t* rows, std::size_t n,
+                              int bytes, std::int32_t* out) {
+  hammingDistancesOf(query, rows, n, bytes, out);
+}
+
+/// Uses the popcount instruction where the CPU has one: Debian's faiss is built for the baseline
+/// x86-64, which counts bits in software - its exact binary search took 3x as long here. Chosen
+/// at run time by a plain branch, not an ifunc (target_clones): ThreadSanitizer builds crash
+/// resolving ifuncs at start-up.
+void hammingDistances(const std::uint8_t* query, const std::uint8_t* rows, std::size_t n, int bytes,
+                      std::int32_t* out) {
+  static const bool has_popcount = __builtin_cpu_supports("popcnt");
+  if (has_popcount) {
+    hammingDistancesPopcnt(query, rows, n, bytes, out);
+  } else {
+    hammingDistancesPortable(query, rows, n, bytes, out);
+  }
+}
+#else
+void hammingDistances(const std::uint8_t* query, const std::uint8_t* rows, std::size_t n, int bytes,
+                      std::int32_t* out) {
+  hammingDistancesOf(query, rows, n, bytes, out);
+}
+#endif
 
 /// Exact k-nearest search over binary rows (Hamming), ties to the earlier row.
 class HammingRows {
