@@ -29,7 +29,7 @@ struct KeyFrameCullingOptions {
   double max_gap_s = 0.5;   ///< Largest predecessor-successor gap after a removal [s], > 0.
   /// Same, after the inertial initialisation, for keyframes older than the inertial window [s].
   double max_gap_inertial_s = 3.0;
-  /// Same, for keyframes made more than old_after_s before the newest one [s], >= 0 and >=
+  /// Same, for keyframes made more than old_after_s before the newest one [s], >=
   /// max_gap_inertial_s.
   double max_gap_old_s = 60.0;
   double old_after_s = 30.0;  ///< [s], > 0.
