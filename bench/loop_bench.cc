@@ -71,7 +71,7 @@ void query(benchmark::State& state, int type, int cols) {
   for (auto _ : state)
     benchmark::DoNotOptimize(db.query(rows));
   state.counters["keyframes"] = keyframes;
-  state.counters["index_MB"] = static_cast<double>(db.descriptorBytes()) / 1e6;
+  state.counters["index_MB"] = static_cast<double>(db.indexBytes()) / 1e6;
 }
 
 /// Indexing one keyframe's place descriptors into a database of state.range(0) keyframes (its own

@@ -64,21 +64,24 @@ awk -v rate="$frames_per_lap" -v lap="$lap_s" -v max_growth="$max_growth" '
       if ($i == "keyframes") kf = $(i + 1)
       if ($i == "points") pts = $(i + 1)
       if ($i == "RSS") rss = $(i + 1)
+      if ($i == "heap") heap = $(i + 1)
+      if ($i == "(free") { heap_free = $(i + 1); sub(/\)/, "", heap_free) }
     }
     minute = int(frame / (rate / lap) / 60)
     n[minute]++; fps[minute] += now; last_kf[minute] = kf; last_pts[minute] = pts
     if (rss > max_rss[minute]) max_rss[minute] = rss
+    last_heap[minute] = heap; last_free[minute] = heap_free
     if (minute >= 5 && !(5 in rss_at)) rss_at[5] = rss
     if (minute >= 5 && rss > peak_after) peak_after = rss
     if (minute > last_minute) last_minute = minute
   }
   END {
-    printf "| minute | FPS | ms per frame | keyframes | map points | RSS max [MB] |\n|---|---|---|---|---|---|\n"
+    printf "| minute | FPS | ms per frame | keyframes | map points | RSS max [MB] | heap in use [MB] | heap free [MB] |\n|---|---|---|---|---|---|---|---|\n"
     for (m = 0; m <= last_minute; m++) {
       if (!(m in n)) continue
       mean = fps[m] / n[m]
-      printf "| %d | %.1f | %.1f | %d | %d | %d |\n", m, mean, (mean > 0 ? 1000 / mean : 0),
-        last_kf[m], last_pts[m], max_rss[m]
+      printf "| %d | %.1f | %.1f | %d | %d | %d | %s | %s |\n", m, mean, (mean > 0 ? 1000 / mean : 0),
+        last_kf[m], last_pts[m], max_rss[m], last_heap[m], last_free[m]
     }
     if (!(5 in rss_at)) { print "the run is shorter than 5 minutes of sequence: no growth to report"; exit 1 }
     growth = 100 * (peak_after - rss_at[5]) / rss_at[5]

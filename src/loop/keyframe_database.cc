@@ -165,6 +165,7 @@ class HammingRows {
   }
 
   std::size_t size() const { return data_.size() / static_cast<std::size_t>(bytes_); }
+  int rowBytes() const { return bytes_; }
 
   /// Fills row q's k slots of distances / labels (n x k, preset to -1 labels).
   void search(const cv::Mat& rows, int k, std::vector<double>& distances,
@@ -229,6 +230,21 @@ class KeyFrameDatabase::RowIndex {
     }
   }
 
+  /// Memory of the rows and, for a graph, of its links.
+  std::size_t bytes() const {
+    if (hamming_) return hamming_->size() * static_cast<std::size_t>(hamming_->rowBytes());
+    if (binary_) {
+      const auto* graph = dynamic_cast<const faiss::IndexBinaryHNSW*>(binary_.get());
+      return static_cast<std::size_t>(binary_->ntotal) *
+                 static_cast<std::size_t>(binary_->code_size) +
+             (graph != nullptr ? linkBytes(graph->hnsw) : 0);
+    }
+    const std::size_t rows = static_cast<std::size_t>(dense_->ntotal) *
+                             static_cast<std::size_t>(dense_->d) * sizeof(float);
+    const auto* graph = dynamic_cast<const faiss::IndexHNSW*>(dense_.get());
+    return rows + (graph != nullptr ? linkBytes(graph->hnsw) : 0);
+  }
+
   std::size_t size() const {
     if (hamming_) return hamming_->size();
     return static_cast<std::size_t>(binary_ ? binary_->ntotal : dense_->ntotal);
@@ -271,6 +287,11 @@ class KeyFrameDatabase::RowIndex {
   }
 
  private:
+  static std::size_t linkBytes(const faiss::HNSW& hnsw) {
+    return hnsw.neighbors.size() * sizeof(faiss::HNSW::storage_idx_t) +
+           hnsw.levels.size() * sizeof(int) + hnsw.offsets.size() * sizeof(std::size_t);
+  }
+
   static std::unique_ptr<faiss::IndexBinary> binaryGraph(int bits, int hnsw_search) {
     auto index = std::make_unique<faiss::IndexBinaryHNSW>(bits, kHnswLinks);
     index->hnsw.efConstruction = kHnswConstruction;
@@ -450,10 +471,8 @@ std::size_t KeyFrameDatabase::numDescriptors() const {
   return graph_owners_.size() + held_owners_.size();
 }
 
-std::size_t KeyFrameDatabase::descriptorBytes() const {
-  const std::size_t row_bytes = type_ == CV_32FC1 ? sizeof(float) * static_cast<std::size_t>(cols_)
-                                                  : static_cast<std::size_t>(cols_);
-  return numDescriptors() * row_bytes;
+std::size_t KeyFrameDatabase::indexBytes() const {
+  return (graph_ ? graph_->bytes() : 0) + (held_index_ ? held_index_->bytes() : 0);
 }
 
 void KeyFrameDatabase::clear() {

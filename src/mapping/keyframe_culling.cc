@@ -43,7 +43,7 @@ double redundantPointShare(const map::Map& map, map::KeyFrameId id, int min_obse
     int finer = 0;
     for (const auto& [other, index] : observers) {
       if (other == id) continue;
-      map.readKeyFrame(other, [&, index = index](const map::KeyFrame& kf) {
+      map.readKeyFrame(other, [&, index = index, octave = octave](const map::KeyFrame& kf) {
         if (kf.keypoints[static_cast<std::size_t>(index)].octave <= octave + 1) ++finer;
       });
       if (finer >= min_observers) break;

@@ -82,7 +82,7 @@ void LoopStage::record(const loop::LoopStep& step, bool inertial) {
     found_inertial_ = inertial;
   }
   summary_.index_descriptors = closer_.database().numDescriptors();
-  summary_.index_bytes = closer_.database().descriptorBytes();
+  summary_.index_bytes = closer_.database().indexBytes();
   summary_.index_keyframes = closer_.database().numKeyFrames();
   summary_.index_rebuilds = closer_.database().rebuilds();
 }

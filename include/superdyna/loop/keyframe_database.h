@@ -92,8 +92,9 @@ class KeyFrameDatabase {
   std::size_t numHeldKeyFrames() const { return held_.size(); }
   /// Descriptor rows stored (held and in the graph, culled ones until the next rebuild).
   std::size_t numDescriptors() const;
-  /// Bytes of the stored descriptors (the index's memory, up to the graph's links).
-  std::size_t descriptorBytes() const;
+  /// Memory of the two indices [bytes]: the stored rows and the graph's links (with M = 16 the
+  /// links are about 150 bytes per row, four times an ORB row).
+  std::size_t indexBytes() const;
   /// Rebuilds of the graph index so far.
   int rebuilds() const { return rebuilds_; }
   void clear();
