@@ -2,11 +2,28 @@
 
 #include <unistd.h>
 
+#include <fstream>
+
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
 
-#include <fstream>
+// Sanitizers replace malloc with their own allocator: glibc's statistics and trimming then see
+// an allocator that holds nothing.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define SUPERDYNA_GLIBC_MALLOC 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+#define SUPERDYNA_GLIBC_MALLOC 0
+#endif
+#endif
+#if !defined(SUPERDYNA_GLIBC_MALLOC) && defined(__GLIBC__) && \
+    (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+#define SUPERDYNA_GLIBC_MALLOC 1
+#elif !defined(SUPERDYNA_GLIBC_MALLOC)
+#define SUPERDYNA_GLIBC_MALLOC 0
+#endif
 
 namespace superdyna {
 
@@ -21,7 +38,7 @@ std::optional<std::uint64_t> residentSetBytes() {
 }
 
 std::optional<HeapUsage> heapUsage() {
-#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+#if SUPERDYNA_GLIBC_MALLOC
   const struct mallinfo2 info = mallinfo2();
   return HeapUsage{info.uordblks + info.hblkhd, info.fordblks};
 #else
@@ -30,7 +47,7 @@ std::optional<HeapUsage> heapUsage() {
 }
 
 bool releaseFreeHeapMemory() {
-#if defined(__GLIBC__)
+#if SUPERDYNA_GLIBC_MALLOC
   return malloc_trim(0) == 1;
 #else
   return false;

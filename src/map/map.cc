@@ -55,6 +55,9 @@ void MapOptions::validate() const {
     throw OptionError("map.scale_factor",
                       "must be a finite number > 1 (>= 1 with a single pyramid level)");
   }
+  if (max_imu_samples_per_link < 16) {
+    throw OptionError("map.max_imu_samples_per_link", "must be >= 16");
+  }
 }
 
 Map::Map(MapOptions options) : options_(std::move(options)) {
@@ -238,7 +241,9 @@ void Map::relinkSuccessor(const KeyFrame& erased) {
     if (erased.previous == kNoKeyFrame || !linked) {
       other.imu_from_previous.clear();
     } else {
-      other.imu_from_previous = mergeImuSamples(erased.imu_from_previous, other.imu_from_previous);
+      other.imu_from_previous =
+          thinImuSamples(mergeImuSamples(erased.imu_from_previous, other.imu_from_previous),
+                         options_.max_imu_samples_per_link);
     }
     return;
   }
@@ -251,6 +256,50 @@ std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& ear
     if (merged.empty() || sample.t_ns > merged.back().t_ns) merged.push_back(sample);
   }
   return merged;
+}
+
+std::vector<io::ImuSample> thinImuSamples(std::vector<io::ImuSample> samples,
+                                          std::size_t max_samples) {
+  if (max_samples < 3) throw OptionError("max_samples", "must be >= 3");
+  if (samples.size() <= max_samples) return samples;
+  const TimeNs t_first = samples.front().t_ns;
+  const double span = static_cast<double>(samples.back().t_ns - t_first);
+  const std::size_t bins = max_samples - 2;
+  std::vector<io::ImuSample> thinned{samples.front()};
+  thinned.reserve(max_samples);
+  // Sums of the interior samples of the current bin.
+  std::size_t bin = 0;
+  std::size_t count = 0;
+  double t_sum = 0.0;
+  io::ImuSample sum;
+  const auto flush = [&] {
+    if (count == 0) return;
+    const double n = static_cast<double>(count);
+    io::ImuSample mean;
+    mean.t_ns = t_first + static_cast<TimeNs>(std::llround(t_sum / n));
+    mean.gyro = sum.gyro / n;
+    mean.accel = sum.accel / n;
+    thinned.push_back(mean);
+    count = 0;
+    t_sum = 0.0;
+    sum = io::ImuSample{};
+  };
+  for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+    const double offset = static_cast<double>(samples[k].t_ns - t_first);
+    const std::size_t b =
+        std::min(bins - 1, static_cast<std::size_t>(offset / span * static_cast<double>(bins)));
+    if (b != bin) {
+      flush();
+      bin = b;
+    }
+    t_sum += offset;
+    sum.gyro += samples[k].gyro;
+    sum.accel += samples[k].accel;
+    ++count;
+  }
+  flush();
+  thinned.push_back(samples.back());
+  return thinned;
 }
 
 bool Map::eraseMapPoint(MapPointId id) {

@@ -339,6 +339,9 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
 }
 
 void System::run(io::DatasetSource& source, const FrameCallback& on_frame) {
+  // One record per frame, written as the run goes: no doubling and copying of the whole
+  // trajectory's records on long runs (the untouched part of the block is not resident).
+  frames_.reserve(frames_.size() + source.size());
   if (options_.deterministic) {
     runSequentially(source, on_frame);
   } else {

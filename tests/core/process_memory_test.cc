@@ -25,7 +25,7 @@ TEST(ProcessMemory, ResidentSetGrowsByWhatThisProcessTouches) {
 
 TEST(ProcessMemory, HeapInUseCountsALiveAllocationAndNotAFreedOne) {
   const std::optional<HeapUsage> before = heapUsage();
-  if (!before) GTEST_SKIP() << "not glibc: no allocator statistics";
+  if (!before) GTEST_SKIP() << "malloc is not glibc's: no allocator statistics";
   constexpr std::size_t kBytes = 32u << 20;
   auto block = std::make_unique<char[]>(kBytes);
   block[0] = 1;
@@ -39,7 +39,7 @@ TEST(ProcessMemory, HeapInUseCountsALiveAllocationAndNotAFreedOne) {
 }
 
 TEST(ProcessMemory, ReleasingTheHeapReturnsPagesFreedBelowALiveBlock) {
-  if (!heapUsage()) GTEST_SKIP() << "not glibc: no allocator control";
+  if (!heapUsage()) GTEST_SKIP() << "malloc is not glibc's: no allocator control";
   // 64 MB of small blocks (below the mmap threshold: they come from the heap), then one block
   // above them that stays alive: freeing the small ones leaves a free hole that glibc does not
   // return by itself, as culled keyframes leave under newer ones in a long run.

@@ -443,6 +443,78 @@ TEST(MapTest, MergedImuSamplesDropTheSharedBracketingSample) {
   EXPECT_EQ(merged.back().t_ns, 15);
 }
 
+/// 200 Hz samples of smooth signals over [t0_s, t1_s].
+std::vector<io::ImuSample> smoothImuRun(double t0_s, double t1_s) {
+  std::vector<io::ImuSample> samples;
+  for (TimeNs t = secondsToNs(t0_s); t <= secondsToNs(t1_s); t += secondsToNs(0.005)) {
+    const double s = nsToSeconds(t);
+    io::ImuSample sample;
+    sample.t_ns = t;
+    sample.gyro = Eigen::Vector3d(0.1 * std::sin(0.5 * s), 0.2, 0.05 * std::cos(0.2 * s));
+    sample.accel = Eigen::Vector3d(0.01 * s, 9.81, std::cos(0.3 * s));
+    samples.push_back(sample);
+  }
+  return samples;
+}
+
+/// Integrals of both signals over the samples' span, linear between samples (the way
+/// preintegration interpolates them).
+std::pair<Eigen::Vector3d, Eigen::Vector3d> trapezoidIntegrals(
+    const std::vector<io::ImuSample>& samples) {
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    const double dt = nsToSeconds(samples[k].t_ns - samples[k - 1].t_ns);
+    gyro += 0.5 * dt * (samples[k].gyro + samples[k - 1].gyro);
+    accel += 0.5 * dt * (samples[k].accel + samples[k - 1].accel);
+  }
+  return {gyro, accel};
+}
+
+TEST(MapTest, ThinnedImuSamplesKeepTheEndsAndTheIntegrals) {
+  const std::vector<io::ImuSample> full = smoothImuRun(0.0, 60.0);  // 12 001 samples
+  const std::vector<io::ImuSample> thinned = thinImuSamples(full, 256);
+  ASSERT_EQ(thinned.size(), 256u);
+  EXPECT_EQ(thinned.front().t_ns, full.front().t_ns);
+  EXPECT_EQ(thinned.back().t_ns, full.back().t_ns);
+  EXPECT_EQ(thinned.back().accel, full.back().accel);
+  for (std::size_t k = 1; k < thinned.size(); ++k)
+    ASSERT_GT(thinned[k].t_ns, thinned[k - 1].t_ns) << "sample " << k;
+  const auto [gyro_full, accel_full] = trapezoidIntegrals(full);
+  const auto [gyro_thin, accel_thin] = trapezoidIntegrals(thinned);
+  // 0.23 s bins of signals that change over seconds: the integrals agree to a few 1e-4.
+  EXPECT_LT((gyro_thin - gyro_full).norm(), 1e-3 * gyro_full.norm());
+  EXPECT_LT((accel_thin - accel_full).norm(), 1e-4 * accel_full.norm());
+  EXPECT_EQ(thinImuSamples(full, full.size()).size(), full.size());  // short enough: unchanged
+}
+
+/// Keyframes every 2 s over 60 s, each with its 200 Hz samples; culling every other one 29 times
+/// would leave one keyframe linked by all 12 000 samples to the first.
+TEST(MapTest, ErasedKeyFramesLeaveTheirSuccessorsAtMostTheLinkSampleLimit) {
+  MapOptions options;
+  options.max_imu_samples_per_link = 512;
+  Map map(options);
+  std::vector<KeyFrameId> ids;
+  for (int k = 0; k <= 30; ++k) {
+    KeyFrame keyframe = makeKeyFrame(1);
+    keyframe.t_ns = secondsToNs(2.0 * k);
+    if (k > 0) keyframe.imu_from_previous = smoothImuRun(2.0 * (k - 1), 2.0 * k);
+    ids.push_back(map.addKeyFrame(std::move(keyframe)));
+  }
+  for (int k = 1; k < 30; ++k)
+    ASSERT_TRUE(map.eraseKeyFrame(ids[static_cast<std::size_t>(k)]));
+  const auto last = map.keyFrame(ids.back());  // a copy
+  ASSERT_TRUE(last);
+  EXPECT_EQ(last->previous, ids.front());
+  EXPECT_LE(last->imu_from_previous.size(), 512u);
+  EXPECT_EQ(last->imu_from_previous.front().t_ns, 0);
+  EXPECT_EQ(last->imu_from_previous.back().t_ns, secondsToNs(60.0));
+  const auto [gyro_full, accel_full] = trapezoidIntegrals(smoothImuRun(0.0, 60.0));
+  const auto [gyro_kept, accel_kept] = trapezoidIntegrals(last->imu_from_previous);
+  EXPECT_LT((gyro_kept - gyro_full).norm(), 1e-3 * gyro_full.norm());
+  EXPECT_LT((accel_kept - accel_full).norm(), 1e-4 * accel_full.norm());
+}
+
 /// Keyframes at 0, 1 and 2 s with 100 Hz samples between them; the third one's run restarted
 /// after an IMU gap from 1.0 to 1.6 s, so it starts at 1.6 s (after its predecessor).
 TEST(MapTest, ErasingTheKeyFrameBeforeAnImuGapLeavesTheSuccessorUnlinked) {

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "superdyna/core/error.h"
 #include "superdyna/mapping/keyframe_preintegration.h"
 
@@ -195,6 +197,37 @@ TEST(KeyFramePreintegrationsTest, KeepsNoStepsAndIntegratesAgainWhenTheBiasMoved
   EXPECT_TRUE(moved->deltaPosition().isApprox(expected.deltaPosition(), 1e-14));
   EXPECT_TRUE(moved->covariance().isApprox(expected.covariance(), 1e-12));
   EXPECT_TRUE(moved->J_P_bg().isApprox(expected.J_P_bg(), 1e-12));
+}
+
+TEST(KeyFramePreintegrationsTest, AThinnedLongLinkPreintegratesLikeItsFullSamples) {
+  // 60 s at 200 Hz of a rig turning and accelerating smoothly, as a link between two keyframes
+  // far behind the newest that culling lengthened, thinned to the map's 1024 samples.
+  std::vector<io::ImuSample> full;
+  for (TimeNs t = 0; t <= secondsToNs(60.0); t += secondsToNs(0.005)) {
+    const double s = nsToSeconds(t);
+    io::ImuSample sample;
+    sample.t_ns = t;
+    sample.gyro = Eigen::Vector3d(0.1 * std::sin(0.5 * s), 0.2, 0.05 * std::cos(0.2 * s));
+    sample.accel = Eigen::Vector3d(0.3 * std::sin(0.4 * s), 9.81, std::cos(0.3 * s));
+    full.push_back(sample);
+  }
+  const std::vector<io::ImuSample> thinned = map::thinImuSamples(full, 1024);
+  ASSERT_EQ(thinned.size(), 1024u);
+  const imu::ImuNoise noise;
+  imu::Preintegration from_full(imu::Bias{}, noise);
+  from_full.integrateBetween(full, 0, secondsToNs(60.0));
+  imu::Preintegration from_thinned(imu::Bias{}, noise);
+  from_thinned.integrateBetween(thinned, 0, secondsToNs(60.0));
+  const double rotation_error =
+      Eigen::AngleAxisd(from_full.deltaRotation().transpose() * from_thinned.deltaRotation())
+          .angle();
+  EXPECT_LT(rotation_error, 1e-4);  // rad, over 12 rad turned
+  EXPECT_LT((from_thinned.deltaVelocity() - from_full.deltaVelocity()).norm(),
+            1e-3 * from_full.deltaVelocity().norm());
+  EXPECT_LT((from_thinned.deltaPosition() - from_full.deltaPosition()).norm(),
+            1e-3 * from_full.deltaPosition().norm());
+  // The noise model integrates the same white noise over the same time: the same covariance.
+  EXPECT_TRUE(from_thinned.covariance().isApprox(from_full.covariance(), 0.05));
 }
 
 TEST(KeyFrameCullingTest, RejectsInvalidOptions) {

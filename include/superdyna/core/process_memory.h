@@ -16,15 +16,16 @@ struct HeapUsage {
   std::uint64_t free_bytes = 0;    ///< freed but kept by the allocator inside its arenas
 };
 
-/// The allocator's counts over all arenas; nullopt where the C library is not glibc.
+/// The allocator's counts over all arenas; nullopt where malloc is not glibc's (another C
+/// library, or a sanitizer's allocator).
 std::optional<HeapUsage> heapUsage();
 
 /// Hands the allocator's free pages back to the system (glibc's malloc_trim(0)). glibc returns
 /// only the top of a heap by itself; pages freed below a live block stay resident, so a long run
 /// that frees and reallocates (culled keyframes, rebuilt indices, several threads' arenas) grows
 /// its RSS with no data behind it. Takes a few milliseconds and holds each arena's lock meanwhile:
-/// call it now and then (`superdyna run` does every 10 s), not per frame. False where the C library
-/// is not glibc or nothing was released.
+/// call it now and then (`superdyna run` does every 10 s), not per frame. False where malloc is
+/// not glibc's or nothing was released.
 bool releaseFreeHeapMemory();
 
 }  // namespace superdyna

@@ -63,9 +63,16 @@ struct MapOptions {
   double scale_factor = 1.2;
   /// Number of pyramid levels of the feature extractor. Default 8 (ORB).
   int num_levels = 8;
+  /// IMU samples a keyframe keeps from its predecessor at most: a link that culling lengthened
+  /// beyond it is thinned (thinImuSamples), so that a map of bounded size holds bounded IMU data
+  /// however long the run (without it every sample since the first keyframe stays: 0.67 MB per
+  /// minute at 200 Hz). 1024 leaves links up to 5 s at 200 Hz untouched (the inertial window's
+  /// gaps are at most mapping.cull_max_gap_inertial_s, 3 s); only the long links of keyframes far
+  /// behind the newest (mapping.cull_max_gap_old_s) are thinned.
+  std::size_t max_imu_samples_per_link = 1024;
 
-  /// Throws OptionError when there is no camera, num_levels < 1, or scale_factor < 1 (<= 1
-  /// with more than one level).
+  /// Throws OptionError when there is no camera, num_levels < 1, scale_factor < 1 (<= 1
+  /// with more than one level) or max_imu_samples_per_link < 16.
   void validate() const;
 };
 
@@ -81,6 +88,14 @@ struct CovisibleKeyFrame {
 /// IMU run across two consecutive gaps (both bracket the time they share).
 std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
                                            const std::vector<io::ImuSample>& later);
+
+/// At most `max_samples` (>= 3) samples spanning the same time as `samples` (increasing times):
+/// the first and the last kept as they are (they bracket the link's keyframes), those between
+/// replaced by their means over max_samples - 2 bins of equal duration (empty bins give none).
+/// The integral of each signal over the link, which is what preintegration needs, stays up to
+/// the interpolation between coarser samples. Unchanged when short enough.
+std::vector<io::ImuSample> thinImuSamples(std::vector<io::ImuSample> samples,
+                                          std::size_t max_samples);
 
 /// A correction of the map's keyframes that does not move the world as a whole (a loop closure's
 /// pose graph): each listed keyframe moved by C (T_w_b_new = C * T_w_b_old). Poses held outside
@@ -162,8 +177,9 @@ class Map {
   /// points that were left without any observation (the caller decides whether to cull them), or
   /// nullopt when the keyframe is unknown. The temporal chain stays connected: the successor takes
   /// the erased keyframe's predecessor and the concatenation of both IMU sample runs
-  /// (mergeImuSamples); without a predecessor, or when its own run does not reach back to the
-  /// erased keyframe (restarted after an IMU gap), its samples are cleared.
+  /// (mergeImuSamples, thinned to MapOptions::max_imu_samples_per_link); without a predecessor, or
+  /// when its own run does not reach back to the erased keyframe (restarted after an IMU gap), its
+  /// samples are cleared.
   std::optional<std::vector<MapPointId>> eraseKeyFrame(KeyFrameId id);
 
   /// Erases a map point with all its observations; false when unknown.
