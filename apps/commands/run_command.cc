@@ -359,9 +359,8 @@ void printLoops(const system::System& slam, const Trajectory& gt) {
       "{} too few matches, {} no transform, {} too few inliers, {} tilted; {} verified loops "
       "not applied); per keyframe: "
       "detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion {:.1f} ms "
-      "per loop; index {} descriptors ({:.1f} MB with the graph's links) of {} keyframes, rebuilt "
-      "{} "
-      "times\n",
+      "per loop; index {} descriptors ({:.1f} MB with the graph's links) of {} keyframes, "
+      "rebuilt {} times\n",
       loops.loops.size(), loops.keyframes, loops.skipped, loops.verifications, loops.rejected[0],
       loops.rejected[1], loops.rejected[2], loops.rejected[3], loops.loops_dropped,
       perKeyFrame(loops.detection_ms), perKeyFrame(loops.verification_ms),
