@@ -2,10 +2,10 @@
 # Memory and time per frame over a long run: simulates one 210 s lap of the indoor scene's
 # procedural flight (it repeats after 210 s: bench/repeat_sequence.py), repeats it LAPS times
 # (default 9: 31.5 min, 37 800 frames at 20 Hz) and runs `superdyna run` over it, reading the
-# progress lines (frames, FPS, keyframes, map points, resident memory, about once a second).
-# Prints per sequence minute the frame rate, map size and RSS, and the RSS growth after the
-# first 5 minutes (max RSS after minute 5 over the RSS at minute 5); fails (exit 1) when it is
-# MAX_GROWTH percent (default 20) or more.
+# progress lines (frames, FPS, keyframes, map points, resident memory and the allocator's heap in
+# use and freed-but-kept, about once a second). Prints per sequence minute the frame rate, map
+# size, RSS and heap, and the RSS growth after the first 5 minutes (max RSS after minute 5 over
+# the RSS at minute 5); fails (exit 1) when it is MAX_GROWTH percent (default 20) or more.
 #
 # Usage: bench/memory_soak.sh [--report] OUT_DIR [LAPS=9]
 #   OUT_DIR   the lap (OUT_DIR/lap, simulated once and reused), the repeated sequence

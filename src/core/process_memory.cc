@@ -11,17 +11,17 @@
 // Sanitizers replace malloc with their own allocator: glibc's statistics and trimming then see
 // an allocator that holds nothing.
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define SUPERDYNA_GLIBC_MALLOC 0
+#define SUPERDYNA_SANITIZED_MALLOC
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
     __has_feature(memory_sanitizer)
-#define SUPERDYNA_GLIBC_MALLOC 0
+#define SUPERDYNA_SANITIZED_MALLOC
 #endif
 #endif
-#if !defined(SUPERDYNA_GLIBC_MALLOC) && defined(__GLIBC__) && \
+#if defined(__GLIBC__) && !defined(SUPERDYNA_SANITIZED_MALLOC) && \
     (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
 #define SUPERDYNA_GLIBC_MALLOC 1
-#elif !defined(SUPERDYNA_GLIBC_MALLOC)
+#else
 #define SUPERDYNA_GLIBC_MALLOC 0
 #endif
 

@@ -165,7 +165,7 @@ class HammingRows {
   }
 
   std::size_t size() const { return data_.size() / static_cast<std::size_t>(bytes_); }
-  int rowBytes() const { return bytes_; }
+  std::size_t bytes() const { return data_.size(); }
 
   /// Fills row q's k slots of distances / labels (n x k, preset to -1 labels).
   void search(const cv::Mat& rows, int k, std::vector<double>& distances,
@@ -232,7 +232,7 @@ class KeyFrameDatabase::RowIndex {
 
   /// Memory of the rows and, for a graph, of its links.
   std::size_t bytes() const {
-    if (hamming_) return hamming_->size() * static_cast<std::size_t>(hamming_->rowBytes());
+    if (hamming_) return hamming_->bytes();
     if (binary_) {
       const auto* graph = dynamic_cast<const faiss::IndexBinaryHNSW*>(binary_.get());
       return static_cast<std::size_t>(binary_->ntotal) *
