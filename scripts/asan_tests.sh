@@ -24,6 +24,7 @@ cmake -S "$repo_dir" -B "$build_dir" -DSUPERDYNA_BUILD_TESTS=ON >/dev/null
 nice -n 10 cmake --build "$build_dir" -j "$jobs" --target "${targets[@]}"
 
 export ASAN_OPTIONS="halt_on_error=1 detect_leaks=1 ${ASAN_OPTIONS:-}"
+export LSAN_OPTIONS="suppressions=$repo_dir/scripts/lsan_suppressions.txt ${LSAN_OPTIONS:-}"
 export UBSAN_OPTIONS="halt_on_error=1 print_stacktrace=1 ${UBSAN_OPTIONS:-}"
 for spec in "${specs[@]}"; do
   binary=${spec%%:*}

@@ -22,6 +22,7 @@ void PointFusionOptions::validate() const {
   if (!(reprojection_chi2 > 0.0)) {
     throw OptionError("mapping.fusion_reprojection_chi2", "must be > 0");
   }
+  if (!(stereo_chi2 > 0.0)) throw OptionError("mapping.fusion_stereo_chi2", "must be > 0");
   if (!(sigma0_px > 0.0)) throw OptionError("mapping.sigma0_px", "must be > 0");
 }
 
@@ -60,10 +61,31 @@ std::vector<map::MapPointId> pointsOf(const map::KeyFrame& keyframe) {
 
 }  // namespace
 
-PointFuser::PointFuser(const PointFusionOptions& options, const optim::ReprojectionCamera& camera)
-    : options_(options), camera_(camera), focal_px_(0.5 * (camera.fx + camera.fy)) {
+PointFuser::PointFuser(const PointFusionOptions& options, const optim::ReprojectionCamera& camera,
+                       double stereo_baseline_m)
+    : options_(options),
+      camera_(camera),
+      focal_px_(0.5 * (camera.fx + camera.fy)),
+      stereo_baseline_m_(stereo_baseline_m) {
   options_.validate();
   camera_.validate();
+  if (!(stereo_baseline_m >= 0.0) || !std::isfinite(stereo_baseline_m)) {
+    throw OptionError("stereo_baseline_m", "must be a finite number >= 0");
+  }
+}
+
+double PointFuser::reprojectionChi2(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k,
+                                    double& bound) const {
+  const Eigen::Vector2d error = focal_px_ * (p_c.head<2>() / p_c.z() - k.normalized);
+  bound = options_.reprojection_chi2;
+  if (!options_.stereo_check || !(stereo_baseline_m_ > 0.0) || !k.hasStereo()) {
+    return error.squaredNorm();
+  }
+  // The disparity the point would have against the keypoint's measured one [px].
+  const double disparity_error =
+      camera_.fx * stereo_baseline_m_ * (1.0 / p_c.z() - 1.0 / k.depth_m);
+  bound = options_.stereo_chi2;
+  return error.squaredNorm() + disparity_error * disparity_error;
 }
 
 std::vector<map::KeyFrameId> PointFuser::targets(const map::Map& map,
@@ -149,8 +171,8 @@ void PointFuser::fuseOne(map::Map& map, View& view, map::MapPointId point_id,
     if (pyramid.num_levels > 1 && (k.octave < level - 1 || k.octave > level)) continue;
     if (options_.same_class_only && k.class_id != point->class_id) continue;
     const double sigma = optim::octaveSigmaPx(k.octave, options_.sigma0_px, pyramid.scale_factor);
-    const Eigen::Vector2d error = focal_px_ * (u - k.normalized);
-    if (error.squaredNorm() > options_.reprojection_chi2 * sigma * sigma) continue;
+    double bound_chi2 = 0.0;
+    if (reprojectionChi2(p_c, k, bound_chi2) > bound_chi2 * sigma * sigma) continue;
     const double d = descriptorDistance(point->descriptor, view.keyframe.descriptors, it->second);
     if (d < best_distance) {
       best_distance = d;

@@ -287,6 +287,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"fusion_radius_px", &o.mapping.fusion.radius_px},
         {"fusion_max_distance", &o.mapping.fusion.max_distance},
         {"fusion_max_l2_distance", &o.mapping.fusion.max_l2_distance},
+        {"fusion_stereo_check", &o.mapping.fusion.stereo_check},
         {"cull_keyframes", &o.mapping.keyframe_culling.enabled},
         {"cull_redundancy", &o.mapping.keyframe_culling.redundancy},
         {"cull_min_observers", &o.mapping.keyframe_culling.min_observers},

@@ -29,6 +29,10 @@ struct PointFusionOptions {
   int max_distance = 50;         ///< Hamming distance bound [bits], >= 0.
   double max_l2_distance = 0.9;  ///< Euclidean bound (float descriptors), >= 0.
   double reprojection_chi2 = optim::kChi2Mono95;  ///< Reprojection bound (chi^2, 2 dof), > 0.
+  /// A keypoint with a stereo depth also checks the point's disparity against its own, as
+  /// ORB-SLAM's Fuse checks the right coordinate (bound: stereo_chi2, 3 dof with the two above).
+  bool stereo_check = true;
+  double stereo_chi2 = optim::kChi2Stereo95;  ///< > 0.
   bool same_class_only = true;  ///< Fuse only within a semantic class (class_wise_matching).
   double sigma0_px = 1.0;       ///< Keypoint standard deviation at octave 0 [px], > 0.
   /// Throws OptionError naming the first invalid field (prefix "mapping.fusion_").
@@ -43,8 +47,11 @@ struct PointFusionResult {
 
 class PointFuser {
  public:
-  /// camera: the left camera of the rig (keyframe keypoints are in it). Validates the options.
-  PointFuser(const PointFusionOptions& options, const optim::ReprojectionCamera& camera);
+  /// camera: the left camera of the rig (keyframe keypoints are in it); stereo_baseline_m: the
+  /// distance between the rig's two cameras, the baseline of the keypoints' stereo depths (0 =
+  /// monocular: no disparity check). Validates the options.
+  PointFuser(const PointFusionOptions& options, const optim::ReprojectionCamera& camera,
+             double stereo_baseline_m = 0.0);
 
   /// Fuses the points of `keyframe` with those of its neighbours. Deterministic: targets in
   /// covisibility order, points by id.
@@ -57,10 +64,15 @@ class PointFuser {
                              const std::vector<map::MapPointId>& points) const;
   void fuseOne(map::Map& map, View& view, map::MapPointId point_id,
                PointFusionResult& result) const;
+  /// Squared whitened-at-octave-0 error [px^2] of point p_c (camera frame) against keypoint k,
+  /// with the disparity when k has a stereo depth; `bound` receives the chi^2 bound that applies.
+  double reprojectionChi2(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k,
+                          double& bound) const;
 
   PointFusionOptions options_;
   optim::ReprojectionCamera camera_;
   double focal_px_;
+  double stereo_baseline_m_;
 };
 
 }  // namespace superdyna::mapping
