@@ -64,10 +64,9 @@ class PointFuser {
                              const std::vector<map::MapPointId>& points) const;
   void fuseOne(map::Map& map, View& view, map::MapPointId point_id,
                PointFusionResult& result) const;
-  /// Squared whitened-at-octave-0 error [px^2] of point p_c (camera frame) against keypoint k,
-  /// with the disparity when k has a stereo depth; `bound` receives the chi^2 bound that applies.
-  double reprojectionChi2(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k,
-                          double& bound) const;
+  /// Whether point p_c (camera frame) reprojects onto keypoint k within the chi^2 bound at k's
+  /// sigma [px], its disparity included when k has a stereo depth.
+  bool agrees(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k, double sigma_px) const;
 
   PointFusionOptions options_;
   optim::ReprojectionCamera camera_;
