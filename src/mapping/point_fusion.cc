@@ -74,16 +74,16 @@ PointFuser::PointFuser(const PointFusionOptions& options, const optim::Reproject
   }
 }
 
-bool PointFuser::agrees(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k,
+bool PointFuser::agrees(const Eigen::Vector2d& u, double depth_m, const map::KeyFrameKeypoint& k,
                         double sigma_px) const {
-  const Eigen::Vector2d error = focal_px_ * (p_c.head<2>() / p_c.z() - k.normalized);
+  const Eigen::Vector2d error = focal_px_ * (u - k.normalized);
   const double sigma2 = sigma_px * sigma_px;
   if (!options_.stereo_check || !(stereo_baseline_m_ > 0.0) || !k.hasStereo()) {
     return error.squaredNorm() <= options_.reprojection_chi2 * sigma2;
   }
   // The disparity the point would have against the keypoint's measured one [px].
   const double disparity_error =
-      camera_.fx * stereo_baseline_m_ * (1.0 / p_c.z() - 1.0 / k.depth_m);
+      camera_.fx * stereo_baseline_m_ * (1.0 / depth_m - 1.0 / k.depth_m);
   return error.squaredNorm() + disparity_error * disparity_error <= options_.stereo_chi2 * sigma2;
 }
 
@@ -170,7 +170,7 @@ void PointFuser::fuseOne(map::Map& map, View& view, map::MapPointId point_id,
     if (pyramid.num_levels > 1 && (k.octave < level - 1 || k.octave > level)) continue;
     if (options_.same_class_only && k.class_id != point->class_id) continue;
     const double sigma = optim::octaveSigmaPx(k.octave, options_.sigma0_px, pyramid.scale_factor);
-    if (!agrees(p_c, k, sigma)) continue;
+    if (!agrees(u, p_c.z(), k, sigma)) continue;
     const double d = descriptorDistance(point->descriptor, view.keyframe.descriptors, it->second);
     if (d < best_distance) {
       best_distance = d;

@@ -64,9 +64,10 @@ class PointFuser {
                              const std::vector<map::MapPointId>& points) const;
   void fuseOne(map::Map& map, View& view, map::MapPointId point_id,
                PointFusionResult& result) const;
-  /// Whether point p_c (camera frame) reprojects onto keypoint k within the chi^2 bound at k's
-  /// sigma [px], its disparity included when k has a stereo depth.
-  bool agrees(const Eigen::Vector3d& p_c, const map::KeyFrameKeypoint& k, double sigma_px) const;
+  /// Whether a point projecting to normalised `u` at `depth_m` (camera z) lands on keypoint k
+  /// within the chi^2 bound at k's sigma [px], its disparity included when k has a stereo depth.
+  bool agrees(const Eigen::Vector2d& u, double depth_m, const map::KeyFrameKeypoint& k,
+              double sigma_px) const;
 
   PointFusionOptions options_;
   optim::ReprojectionCamera camera_;
