@@ -54,12 +54,6 @@ const optim::ReprojectionCamera& leftCamera(const std::vector<optim::Reprojectio
   return cameras.front();
 }
 
-/// Distance between the rig's two cameras [m]; 0 with one camera.
-double stereoBaseline(const std::vector<optim::ReprojectionCamera>& cameras) {
-  if (cameras.size() < 2) return 0.0;
-  return (cameras[0].T_b_c.inverse() * cameras[1].T_b_c).t.norm();
-}
-
 }  // namespace
 
 LocalMapper::LocalMapper(const LocalMapperOptions& options,
@@ -68,7 +62,7 @@ LocalMapper::LocalMapper(const LocalMapperOptions& options,
     : options_(options),
       cameras_(std::move(cameras)),
       imu_(imu),
-      fuser_(fusionOptions(options), leftCamera(cameras_), stereoBaseline(cameras_)) {
+      fuser_(fusionOptions(options), leftCamera(cameras_), optim::stereoBaseline(cameras_)) {
   options_.validate();
   if (options_.triangulate) {
     PointTriangulatorOptions triangulation = options_.triangulation;

@@ -142,6 +142,11 @@ void ReprojectionCamera::validate() const {
   }
 }
 
+double stereoBaseline(const std::vector<ReprojectionCamera>& rig) {
+  if (rig.size() < 2) return 0.0;
+  return (rig[0].T_b_c.inverse() * rig[1].T_b_c).t.norm();
+}
+
 Eigen::Vector3d worldToCamera(const SE3d& T_w_b, const SE3d& T_b_c, const Eigen::Vector3d& p_w) {
   return CameraPoint(T_w_b, T_b_c, p_w).p_c;
 }

@@ -22,7 +22,9 @@ constexpr int kMaxTextureSize = 16384;
 
 /// Uniform numbers from a 64-bit Mersenne Twister, converted by hand (not through the standard
 /// distributions, whose output differs between standard libraries) so a seed gives the same
-/// texture everywhere.
+/// texture everywhere. For the same reason no two draws are arguments of one call: C++ leaves their
+/// order to the compiler (gcc evaluates arguments right to left, clang left to right), so each draw
+/// is a statement of its own, in the order gcc drew them when the measured sequences were made.
 class Random {
  public:
   explicit Random(std::uint64_t seed) : engine_(seed) {}
@@ -251,7 +253,11 @@ void paintRoadMarkings(Painter& p, int paint_gray) {
   Random& r = p.random();
   const int line_width = p.texels(0.10, 0.15);
   // Dashed lane lines along u.
-  const int lanes = p.resolves(0.1) ? p.countFor(0.004) + r.uniformInt(0, 2) : 0;
+  int lanes = 0;
+  if (p.resolves(0.1)) {
+    lanes = p.countFor(0.004);
+    lanes += r.uniformInt(0, 2);
+  }
   for (int i = 0; i < lanes; ++i) {
     const int y = r.uniformInt(0, p.rows() - 1);
     const int dash = p.texels(2.0, 4.0), gap = p.texels(2.0, 6.0);
@@ -274,8 +280,9 @@ void paintRoadMarkings(Painter& p, int paint_gray) {
   const int crossings = p.countFor(0.002);
   for (int i = 0; i < crossings; ++i) {
     const cv::Point c = p.randomPoint();
-    p.stripes(cv::Rect(c.x, c.y, p.texels(6.0, 10.0), p.texels(3.0, 4.0)), p.texels(1.0),
-              p.texels(0.5), true, paint_gray);
+    const int height = p.texels(3.0, 4.0);
+    const int width = p.texels(6.0, 10.0);
+    p.stripes(cv::Rect(c.x, c.y, width, height), p.texels(1.0), p.texels(0.5), true, paint_gray);
   }
   const int words = p.countFor(0.01);
   for (int i = 0; i < words; ++i) {
@@ -292,7 +299,9 @@ void paintManhole(Painter& p, cv::Point centre, int base) {
   cv::circle(p.canvas(), centre, radius, cv::Scalar(r.gray(10, 50)), std::max(1, radius / 8));
   const int bar = std::max(1, radius / 6);
   const cv::Rect grille(centre.x - radius / 2, centre.y - radius / 2, radius, radius);
-  p.stripes(grille, 2 * bar, bar, r.chance(0.5), r.gray(10, 50));
+  const int grille_gray = r.gray(10, 50);
+  const bool vertical = r.chance(0.5);
+  p.stripes(grille, 2 * bar, bar, vertical, grille_gray);
 }
 
 StyleLook paintGround(Painter& p) {
@@ -302,16 +311,22 @@ StyleLook paintGround(Painter& p) {
   // Repairs and fresher or older asphalt, mostly aligned with the road.
   for (int i = p.countFor(0.03); i > 0; --i) {
     const float angle = r.chance(0.6) ? 90.0f * r.uniformInt(0, 1) : r.uniform(0.0, 180.0);
-    p.rotatedRect(p.randomPoint(), cv::Size2f(p.texels(0.5, 4.0), p.texels(0.4, 3.0)), angle,
-                  r.contrasting(base, 12, 35));
+    const int gray = r.contrasting(base, 12, 35);
+    const int height = p.texels(0.4, 3.0);
+    const int width = p.texels(0.5, 4.0);
+    p.rotatedRect(p.randomPoint(), cv::Size2f(width, height), angle, gray);
   }
   for (int i = p.countFor(0.03); i > 0; --i) {  // oil stains, wet patches
-    p.blob(p.randomPoint(), p.texels(0.1, 0.8), r.contrasting(base, 15, 40));
+    const int gray = r.contrasting(base, 15, 40);
+    const int radius = p.texels(0.1, 0.8);
+    p.blob(p.randomPoint(), radius, gray);
   }
   for (int i = p.countFor(0.004); i > 0; --i)
     paintManhole(p, p.randomPoint(), base);
   for (int i = p.countFor(0.15); i > 0; --i) {
-    p.crack(p.randomPoint(), p.texels(0.3, 2.0), r.gray(base - 60, base - 30));
+    const int gray = r.gray(base - 60, base - 30);
+    const int length = p.texels(0.3, 2.0);
+    p.crack(p.randomPoint(), length, gray);
   }
   paintRoadMarkings(p, r.gray(200, 245));
   // Aggregate, chips, gravel and leaves.
@@ -363,7 +378,9 @@ void paintWallMaterial(Painter& p, int base) {
   } else {  // plaster with patches
     p.canvas().setTo(base);
     for (int i = p.countFor(0.2); i > 0; --i) {
-      p.blob(p.randomPoint(), p.texels(0.1, 0.6), r.contrasting(base, 10, 30));
+      const int gray = r.contrasting(base, 10, 30);
+      const int radius = p.texels(0.1, 0.6);
+      p.blob(p.randomPoint(), radius, gray);
     }
   }
 }
@@ -375,12 +392,15 @@ void paintWindow(Painter& p, const cv::Rect& box, int frame_gray, int glass_gray
   // Reflections of the street: a few slanted bands, seen only in the glass.
   Painter glass = p.region(box);
   for (int i = r.uniformInt(0, 2); i > 0 && !glass.empty(); --i) {
-    const cv::Point2f c(r.uniformInt(0, box.width), r.uniformInt(0, box.height));
-    glass.rotatedRect(c, cv::Size2f(box.width * 0.15f, box.height * 1.2f), r.uniform(15, 40),
-                      r.contrasting(glass_gray, 15, 50));
+    const int cy = r.uniformInt(0, box.height);
+    const int cx = r.uniformInt(0, box.width);
+    const int gray = r.contrasting(glass_gray, 15, 50);
+    const double angle = r.uniform(15, 40);
+    glass.rotatedRect(cv::Point2f(cx, cy), cv::Size2f(box.width * 0.15f, box.height * 1.2f), angle,
+                      gray);
   }
-  p.fill(cv::Rect(box.x, box.y, box.width, box.height * r.uniformInt(0, 2) / 5),
-         r.chance(0.3) ? r.gray(150, 240) : glass_gray);  // curtain or blind, sometimes
+  const int curtain_gray = r.chance(0.3) ? r.gray(150, 240) : glass_gray;  // curtain or blind
+  p.fill(cv::Rect(box.x, box.y, box.width, box.height * r.uniformInt(0, 2) / 5), curtain_gray);
   if (r.chance(0.25)) {
     p.stripes(cv::Rect(box.x, box.y, box.width, box.height / 2), p.texels(0.04), 1, false,
               r.gray(100, 200));
@@ -408,7 +428,9 @@ void paintShopFront(Painter& p, int top, int bottom, int base) {
            sign_h / 2, r.contrasting(sign_gray, 70, 160));
     const cv::Rect shop(x + width / 10, sign.y + sign_h + p.texels(0.2), width * 8 / 10,
                         bottom - sign.y - sign_h - p.texels(0.2));
-    paintWindow(p, shop, r.gray(20, 90), r.gray(20, 80), r.uniformInt(1, 3));
+    const int mullions = r.uniformInt(1, 3);
+    const int glass_gray = r.gray(20, 80);
+    paintWindow(p, shop, r.gray(20, 90), glass_gray, mullions);
     const int door_w = p.texels(0.9, 1.2);
     const cv::Rect door(shop.x + r.uniformInt(0, std::max(0, shop.width - door_w)),
                         bottom - p.texels(2.2), door_w, p.texels(2.2));
@@ -417,8 +439,8 @@ void paintShopFront(Painter& p, int top, int bottom, int base) {
     // Posters and stickers in the shop window.
     for (int i = r.uniformInt(0, 4); i > 0; --i) {
       const int w = p.texels(0.2, 0.6), h = p.texels(0.3, 0.8);
-      const cv::Rect poster(shop.x + r.uniformInt(0, std::max(0, shop.width - w)),
-                            shop.y + r.uniformInt(0, std::max(0, shop.height - h)), w, h);
+      const int y = shop.y + r.uniformInt(0, std::max(0, shop.height - h));
+      const cv::Rect poster(shop.x + r.uniformInt(0, std::max(0, shop.width - w)), y, w, h);
       const int gray = r.gray(120, 255);
       p.fill(poster, gray);
       p.text(poster, std::max(3, h / 8), r.contrasting(gray, 80, 150));
@@ -441,7 +463,8 @@ StyleLook paintFacade(Painter& p) {
   const bool shops = r.chance(0.7);
   for (int k = 0, bottom = p.rows(); bottom > 0; ++k, bottom -= floor_h) {
     const int top = bottom - floor_h;
-    p.fill(cv::Rect(0, top, p.cols(), p.texels(0.12, 0.25)), r.contrasting(base, 20, 50));
+    const int cornice_gray = r.contrasting(base, 20, 50);
+    p.fill(cv::Rect(0, top, p.cols(), p.texels(0.12, 0.25)), cornice_gray);
     if (k == 0 && shops) {
       paintShopFront(p, top, bottom, base);
       continue;
@@ -459,18 +482,21 @@ StyleLook paintFacade(Painter& p) {
     }
   }
   for (int i = p.countFor(0.02); i > 0; --i) {  // drain pipes
-    p.fill(cv::Rect(r.uniformInt(0, p.cols()), 0, p.texels(0.08, 0.12), p.rows()),
-           r.contrasting(base, 30, 80));
+    const int gray = r.contrasting(base, 30, 80);
+    const int width = p.texels(0.08, 0.12);
+    p.fill(cv::Rect(r.uniformInt(0, p.cols()), 0, width, p.rows()), gray);
   }
   for (int i = p.countFor(0.05); i > 0; --i) {  // plaques, small signs, graffiti
     const cv::Point c = p.randomPoint();
     if (r.chance(0.5)) {
-      const cv::Rect plaque(c.x, c.y, p.texels(0.2, 0.6), p.texels(0.15, 0.4));
+      const int height = p.texels(0.15, 0.4);
+      const cv::Rect plaque(c.x, c.y, p.texels(0.2, 0.6), height);
       const int gray = r.gray(0, 255);
       p.fill(plaque, gray);
       p.text(plaque, std::max(3, plaque.height / 5), r.contrasting(gray, 80, 150));
     } else {
-      p.blob(c, p.texels(0.2, 0.8), r.gray(0, 255));
+      const int gray = r.gray(0, 255);
+      p.blob(c, p.texels(0.2, 0.8), gray);
     }
   }
   p.speckles(p.countFor(40.0), 0.01, 0.04, base - 80, base + 80);
@@ -488,20 +514,22 @@ void paintPoster(Painter& p, const cv::Rect& box) {
   Painter print = p.region(box);
   if (print.empty()) return;
   for (int i = r.uniformInt(3, 10); i > 0; --i) {
-    const cv::Point c(r.uniformInt(0, box.width), r.uniformInt(0, box.height));
+    const int cy = r.uniformInt(0, box.height);
+    const cv::Point c(r.uniformInt(0, box.width), cy);
     const int size = std::max(2, std::min(box.width, box.height) / r.uniformInt(3, 8));
     if (r.chance(0.5)) {
       print.blob(c, size, r.gray(0, 255));
     } else {
-      print.fill(cv::Rect(c.x - size / 2, c.y - size / 2, size, size * r.uniformInt(1, 3)),
-                 r.gray(0, 255));
+      const int gray = r.gray(0, 255);
+      print.fill(cv::Rect(c.x - size / 2, c.y - size / 2, size, size * r.uniformInt(1, 3)), gray);
     }
   }
   const int caption_h = std::max(3, box.height / 12);
   print.text(
       cv::Rect(caption_h, box.height - 3 * caption_h, box.width - 2 * caption_h, 2 * caption_h),
       caption_h, r.contrasting(paper, 80, 160));
-  p.outline(box, p.texels(0.02, 0.05), r.gray(0, 255));
+  const int frame_gray = r.gray(0, 255);
+  p.outline(box, p.texels(0.02, 0.05), frame_gray);
 }
 
 void paintBookshelf(Painter& p, const cv::Rect& box) {
@@ -541,27 +569,31 @@ StyleLook paintIndoor(Painter& p) {
   }
   for (int i = p.countFor(0.06); i > 0; --i) {
     const cv::Point c = p.randomPoint();
-    paintBookshelf(p, cv::Rect(c.x, c.y, p.texels(0.8, 2.0), p.texels(0.7, 2.0)));
+    const int height = p.texels(0.7, 2.0);
+    paintBookshelf(p, cv::Rect(c.x, c.y, p.texels(0.8, 2.0), height));
   }
   for (int i = p.countFor(0.03); i > 0; --i) {  // whiteboards with scribbles
     const cv::Point c = p.randomPoint();
-    const cv::Rect board(c.x, c.y, p.texels(1.2, 2.0), p.texels(0.8, 1.2));
+    const int height = p.texels(0.8, 1.2);
+    const cv::Rect board(c.x, c.y, p.texels(1.2, 2.0), height);
     p.fill(board, r.gray(215, 250));
     for (int k = r.uniformInt(2, 5); k > 0; --k) {
       const int h = p.texels(0.04, 0.08);
-      p.text(cv::Rect(board.x + h, board.y + r.uniformInt(0, board.height - 2 * h),
-                      board.width - 2 * h, h),
-             h, r.gray(10, 90));
+      const int ink = r.gray(10, 90);
+      const int y = board.y + r.uniformInt(0, board.height - 2 * h);
+      p.text(cv::Rect(board.x + h, y, board.width - 2 * h, h), h, ink);
     }
     p.outline(board, p.texels(0.02), r.gray(100, 180));
   }
   for (int i = p.countFor(0.35); i > 0; --i) {  // posters and pictures
     const cv::Point c = p.randomPoint();
-    paintPoster(p, cv::Rect(c.x, c.y, p.texels(0.3, 1.0), p.texels(0.4, 1.2)));
+    const int height = p.texels(0.4, 1.2);
+    paintPoster(p, cv::Rect(c.x, c.y, p.texels(0.3, 1.0), height));
   }
   for (int i = p.countFor(1.5); i > 0; --i) {  // notes, switches, sockets, labels
     const cv::Point c = p.randomPoint();
-    const cv::Rect note(c.x, c.y, p.texels(0.06, 0.2), p.texels(0.06, 0.2));
+    const int height = p.texels(0.06, 0.2);
+    const cv::Rect note(c.x, c.y, p.texels(0.06, 0.2), height);
     const int gray = r.contrasting(base, 40, 120);
     p.fill(note, gray);
     p.text(note, std::max(3, note.height / 4), r.contrasting(gray, 60, 150));
@@ -630,8 +662,10 @@ void paintCar(Painter& p, const cv::Rect& box) {
     paintWheel(p, cv::Point(box.x + wx, box.y + h * 80 / 100), wheel_r, r.gray(10, 40));
   }
   for (int i = r.uniformInt(0, 3); i > 0; --i) {  // stickers, badges, dents
-    const cv::Point c(box.x + r.uniformInt(0, w), box.y + r.uniformInt(h / 2, h));
-    p.blob(c, std::max(2, h / r.uniformInt(12, 30)), r.contrasting(body, 40, 120));
+    const int cy = box.y + r.uniformInt(h / 2, h);
+    const cv::Point c(box.x + r.uniformInt(0, w), cy);
+    const int gray = r.contrasting(body, 40, 120);
+    p.blob(c, std::max(2, h / r.uniformInt(12, 30)), gray);
   }
 }
 
@@ -658,16 +692,19 @@ void paintGarment(Painter& p, const cv::Rect& box) {
   const int cloth = r.gray(15, 240), ink = r.contrasting(cloth, 40, 140);
   p.fill(box, cloth);
   switch (r.uniformInt(0, 5)) {
-    case 0:
-      p.stripes(box, p.texels(0.02, 0.08), p.texels(0.01, 0.03), r.chance(0.3), ink);
-      break;
+    case 0: {
+      const bool vertical = r.chance(0.3);
+      const int width = p.texels(0.01, 0.03);
+      p.stripes(box, p.texels(0.02, 0.08), width, vertical, ink);
+    } break;
     case 1:
       p.checks(box, p.texels(0.02, 0.06), ink);
       break;
     case 2:  // dots
       for (int i = box.area() / std::max(1, p.texels(0.05) * p.texels(0.05)); i > 0; --i) {
-        p.disk(cv::Point(box.x + r.uniformInt(0, box.width), box.y + r.uniformInt(0, box.height)),
-               p.texels(0.005, 0.015), ink);
+        const int radius = p.texels(0.005, 0.015);
+        const int y = box.y + r.uniformInt(0, box.height);
+        p.disk(cv::Point(box.x + r.uniformInt(0, box.width), y), radius, ink);
       }
       break;
     case 3: {  // print with a logo and lettering
@@ -686,9 +723,11 @@ void paintGarment(Painter& p, const cv::Rect& box) {
       break;
     default:  // plain cloth with creases
       for (int i = r.uniformInt(3, 8); i > 0; --i) {
-        const cv::Point a(box.x + r.uniformInt(0, box.width), box.y + r.uniformInt(0, box.height));
-        p.line(a, a + cv::Point(r.uniformInt(-20, 20), r.uniformInt(5, 30)), 1,
-               r.contrasting(cloth, 20, 50));
+        const int ay = box.y + r.uniformInt(0, box.height);
+        const cv::Point a(box.x + r.uniformInt(0, box.width), ay);
+        const int gray = r.contrasting(cloth, 20, 50);
+        const int dy = r.uniformInt(5, 30);
+        p.line(a, a + cv::Point(r.uniformInt(-20, 20), dy), 1, gray);
       }
       break;
   }
@@ -853,8 +892,8 @@ void fillWithCrop(const cv::Mat& photo, cv::Mat& canvas, const cv::Rect& cell, R
   const double scale = std::exp(random.uniform(std::log(0.5), std::log(2.0)));
   const int crop_w = std::clamp(static_cast<int>(cell.width / scale), 1, photo.cols);
   const int crop_h = std::clamp(static_cast<int>(cell.height / scale), 1, photo.rows);
-  const cv::Rect crop(random.uniformInt(0, photo.cols - crop_w),
-                      random.uniformInt(0, photo.rows - crop_h), crop_w, crop_h);
+  const int crop_y = random.uniformInt(0, photo.rows - crop_h);
+  const cv::Rect crop(random.uniformInt(0, photo.cols - crop_w), crop_y, crop_w, crop_h);
   cv::Mat patch;
   cv::resize(photo(crop), patch, cell.size(), 0.0, 0.0,
              crop_w > cell.width ? cv::INTER_AREA : cv::INTER_LINEAR);

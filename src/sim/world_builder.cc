@@ -65,7 +65,8 @@ PathSamples samplePath(const CameraPath& path) {
   return s;
 }
 
-/// Random numbers of one build, seeded once.
+/// Random numbers of one build, seeded once. No two draws are operands or arguments of one
+/// expression (their order would be the compiler's: gcc and clang differ), as in texture.cc.
 class Random {
  public:
   explicit Random(std::uint64_t seed) : rng_(seed) {}
@@ -351,10 +352,10 @@ class WorldBuilder {
     const double min_clearance = parking ? 14.0 : 7.0;
     for (double x = region_min_.x() + cell / 2; x < region_max_.x(); x += cell) {
       for (double y = region_min_.y() + cell / 2; y < region_max_.y(); y += cell) {
-        const Eigen::Vector2d half(random_.uniform(3.5, 0.45 * cell),
-                                   random_.uniform(3.5, 0.45 * cell));
-        const Eigen::Vector2d centre(x + random_.uniform(-1.0, 1.0),
-                                     y + random_.uniform(-1.0, 1.0));
+        const double half_y = random_.uniform(3.5, 0.45 * cell);
+        const Eigen::Vector2d half(random_.uniform(3.5, 0.45 * cell), half_y);
+        const double centre_y = y + random_.uniform(-1.0, 1.0);
+        const Eigen::Vector2d centre(x + random_.uniform(-1.0, 1.0), centre_y);
         if (pathClearance(centre, half) < min_clearance) continue;
         const double height = parking ? random_.uniform(4.0, 9.0) : random_.uniform(6.0, 22.0);
         addBlock(centre, half, height, 0.02, TextureStyle::kFacade, false);
@@ -368,11 +369,12 @@ class WorldBuilder {
     const int count = indoor ? 18 : 30;
     const double min_clearance = indoor ? 1.0 : 2.5;
     for (int attempt = 0, placed = 0; placed < count && attempt < 40 * count; ++attempt) {
-      const Eigen::Vector2d half(random_.uniform(0.2, indoor ? 0.8 : 1.2),
-                                 random_.uniform(0.2, indoor ? 0.8 : 1.2));
+      const double half_y = random_.uniform(0.2, indoor ? 0.8 : 1.2);
+      const Eigen::Vector2d half(random_.uniform(0.2, indoor ? 0.8 : 1.2), half_y);
+      const double centre_y =
+          random_.uniform(region_min_.y() + half.y(), region_max_.y() - half.y());
       const Eigen::Vector2d centre(
-          random_.uniform(region_min_.x() + half.x(), region_max_.x() - half.x()),
-          random_.uniform(region_min_.y() + half.y(), region_max_.y() - half.y()));
+          random_.uniform(region_min_.x() + half.x(), region_max_.x() - half.x()), centre_y);
       if (pathClearance(centre, half) < min_clearance || overlapsFootprints(centre, half, 0.3)) {
         continue;
       }
@@ -455,8 +457,9 @@ class WorldBuilder {
       }
       LinearMotion motion;
       motion.start_xy = xy;
-      motion.heading_rad = std::atan2(forward.y(), forward.x()) + random_.uniform(-0.3, 0.3) +
-                           (random_.chance(0.5) ? M_PI : 0.0);
+      const double jitter = random_.uniform(-0.3, 0.3);
+      const double reverse = random_.chance(0.5) ? M_PI : 0.0;
+      motion.heading_rad = std::atan2(forward.y(), forward.x()) + jitter + reverse;
       motion.ground_z = world_.ground_z;
       motion.t_begin_ns = path_.range.begin;
       motion.t_end_ns = path_.range.end;
@@ -517,13 +520,17 @@ class WorldBuilder {
     const Eigen::Vector2d left(-forward.y(), forward.x());
     const bool crossing = random_.chance(0.6);
     const double view_heading = std::atan2(forward.y(), forward.x());
-    const double heading =
-        crossing
-            ? view_heading + (random_.chance(0.5) ? 0.5 : -0.5) * M_PI + random_.uniform(-0.3, 0.3)
-            : view_heading + (random_.chance(0.5) ? 0.0 : M_PI) + random_.uniform(-0.15, 0.15);
-    const double lateral =
-        crossing ? random_.uniform(-0.3, 0.3) * half_view
-                 : (random_.chance(0.5) ? 1.0 : -1.0) * random_.uniform(0.3, 0.8) * half_view;
+    double heading = view_heading, lateral = 0.0;
+    if (crossing) {
+      const double turn = random_.chance(0.5) ? 0.5 : -0.5;
+      heading = view_heading + turn * M_PI + random_.uniform(-0.3, 0.3);
+      lateral = random_.uniform(-0.3, 0.3) * half_view;
+    } else {
+      const double reverse = random_.chance(0.5) ? 0.0 : M_PI;
+      heading = view_heading + reverse + random_.uniform(-0.15, 0.15);
+      const double side = random_.chance(0.5) ? 1.0 : -1.0;
+      lateral = side * random_.uniform(0.3, 0.8) * half_view;
+    }
     const Eigen::Vector2d centre =
         samples_.position[k].head<2>() + forward * distance + left * lateral;
     const Eigen::Vector2d direction(std::cos(heading), std::sin(heading));
@@ -625,9 +632,13 @@ class WorldBuilder {
     const Eigen::Vector2d left(-forward.y(), forward.x());
     const double view_heading = std::atan2(forward.y(), forward.x());
     const double side = random.chance(0.5) ? 1.0 : -1.0;
-    const double heading =
-        crossing ? view_heading + side * 0.5 * M_PI + random.uniform(-0.15, 0.15)
-                 : view_heading + (random.chance(0.5) ? 0.0 : M_PI) + random.uniform(-0.1, 0.1);
+    double heading = view_heading;
+    if (crossing) {
+      heading = view_heading + side * 0.5 * M_PI + random.uniform(-0.15, 0.15);
+    } else {
+      const double reverse = random.chance(0.5) ? 0.0 : M_PI;
+      heading = view_heading + reverse + random.uniform(-0.1, 0.1);
+    }
     const Eigen::Vector2d centre =
         samples_.position[k].head<2>() +
         (crossing ? forward * distance + left * random.uniform(-0.2, 0.2) * half_view

@@ -113,7 +113,7 @@ Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
       pose_optimizer_(options.pose),
       cameras_(rigCameras(cam0, cam1)),
       imu_(options.use_imu ? imu : std::nullopt),
-      baseline_m_(cam1 ? (cam0.T_b_c.inverse() * cam1->T_b_c).t.norm() : 0.0),
+      baseline_m_(optim::stereoBaseline(cameras_)),
       mapper_(mapping, cameras_, imu_),
       moving_detector_(options.dynamic, camera0_, pyramid.scale_factor) {
   options_.validate();

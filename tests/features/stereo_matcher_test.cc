@@ -380,10 +380,7 @@ constexpr double kStreetProceduralExtentM = 25.0;
 class RenderedTruth {
  public:
   explicit RenderedTruth(const sim::SimulationOptions& options)
-      : options_(options),
-        spline_(fitSpline(options)),
-        world_(buildWorld(options, spline_)),
-        renderer_(options.rig.cameraModel()) {}
+      : RenderedTruth(options, sim::loadMotion(options.motion, kStreetProceduralExtentM)) {}
 
   /// Camera `camera` (0 = left, 1 = right) at time t_ns.
   sim::RenderResult render(TimeNs t_ns, int camera) const {
@@ -392,17 +389,19 @@ class RenderedTruth {
   }
 
  private:
-  static sim::Se3Spline fitSpline(const sim::SimulationOptions& options) {
-    const sim::MotionWindow motion = sim::loadMotion(options.motion, kStreetProceduralExtentM);
-    return sim::Se3Spline::fit(motion.body_poses, secondsToNs(options.knot_spacing_s));
-  }
-  static sim::World buildWorld(const sim::SimulationOptions& options,
-                               const sim::Se3Spline& spline) {
+  RenderedTruth(const sim::SimulationOptions& options, const sim::MotionWindow& motion)
+      : options_(options),
+        spline_(sim::Se3Spline::fit(motion.body_poses, secondsToNs(options.knot_spacing_s))),
+        world_(buildWorld(options, spline_, motion.window)),
+        renderer_(options.rig.cameraModel()) {}
+
+  static sim::World buildWorld(const sim::SimulationOptions& options, const sim::Se3Spline& spline,
+                               const TimeRange& window) {
     const CameraModel camera = options.rig.cameraModel();
     const SE3d T_b_c0 = options.rig.T_b_c0();
     sim::CameraPath path;
     path.T_w_c = [&](TimeNs t) { return spline.pose(t) * T_b_c0; };
-    path.range = sim::loadMotion(options.motion, kStreetProceduralExtentM).window;
+    path.range = window;
     path.horizontal_fov_rad = 2.0 * std::atan(0.5 * camera.width() / camera.fx());
     sim::WorldOptions world_options = options.world;
     world_options.seed = options.seed;

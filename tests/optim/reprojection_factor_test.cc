@@ -143,6 +143,18 @@ double jacobianError(const ceres::CostFunction& factor, const Configuration& c) 
       relative(Eigen::Matrix<double, Rows, 7>(analytic.J_pose) - numeric_ambient, numeric_ambient));
 }
 
+TEST(StereoBaseline, IsTheDistanceBetweenTheFirstTwoCamerasWhateverTheBodyFrame) {
+  // EuRoC-like rig: cameras rotated against the body and offset from its origin.
+  const Eigen::Quaterniond R_b_c(Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitZ()));
+  const SE3d T_b_c0(R_b_c, Eigen::Vector3d(-0.02, -0.06, 0.01));
+  const SE3d T_b_c1 = T_b_c0 * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.11, 0, 0));
+  const ReprojectionCamera left{T_b_c0, 450.0, 450.0};
+  const ReprojectionCamera right{T_b_c1, 450.0, 450.0};
+  EXPECT_NEAR(stereoBaseline({left, right}), 0.11, 1e-12);
+  EXPECT_NEAR(stereoBaseline({right, left}), 0.11, 1e-12);
+  EXPECT_EQ(stereoBaseline({left}), 0.0);
+}
+
 TEST(ReprojectionFactorTest, ResidualIsZeroAtTheTruth) {
   std::mt19937 rng(1);
   for (int trial = 0; trial < 20; ++trial) {

@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 #include <optional>
+#include <vector>
 
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
@@ -54,6 +55,9 @@ struct ReprojectionCamera {
   /// Throws OptionError when a focal length is not positive or the baseline is negative.
   void validate() const;
 };
+
+/// Distance between the first two cameras of a rig [m] (left camera first); 0 with one camera.
+double stereoBaseline(const std::vector<ReprojectionCamera>& rig);
 
 /// p_c = T_b_c^-1 T_w_b^-1 p_w.
 Eigen::Vector3d worldToCamera(const SE3d& T_w_b, const SE3d& T_b_c, const Eigen::Vector3d& p_w);
