@@ -10,7 +10,7 @@
 #   The name `superdyna` builds the command line tool only (for CLI tests run by hand).
 #   --all: the whole suite - every test and the command line tool, then ctest (all but the
 #          clang-format check); about 45 min to build and 75 min to run on 2 cores. gcc, as in the
-#          normal build: some simulator tests compare worlds with golden hashes made by gcc.
+#          normal build.
 # Environment: BUILD_DIR (default build-asan), JOBS (default 2), ASAN_OPTIONS / UBSAN_OPTIONS
 #              (appended to the defaults below).
 set -euo pipefail
