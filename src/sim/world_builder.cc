@@ -65,8 +65,9 @@ PathSamples samplePath(const CameraPath& path) {
   return s;
 }
 
-/// Random numbers of one build, seeded once. No two draws are operands or arguments of one
-/// expression (their order would be the compiler's: gcc and clang differ), as in texture.cc.
+/// Random numbers of one build, seeded once. No two draws are unsequenced, as two arguments or
+/// operands of one expression are (their order would be the compiler's: gcc and clang differ;
+/// braced lists are evaluated in order), as in texture.cc.
 class Random {
  public:
   explicit Random(std::uint64_t seed) : rng_(seed) {}
