@@ -271,8 +271,31 @@ void ProjectionMatchOptions::validate() const {
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
   if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
+  if (min_octave_offset > max_octave_offset) {
+    throw OptionError("min_octave_offset", "must be <= max_octave_offset");
+  }
+  if (!(radius_octave_scale >= 1.0) || !std::isfinite(radius_octave_scale)) {
+    throw OptionError("radius_octave_scale", "must be a finite number >= 1");
+  }
   orientation.validate();
 }
+
+namespace {
+
+/// Sets best.second to the closest offer other than the best at the best's octave.
+void keepSecondAtBestOctave(BestTwo& best, const std::vector<std::pair<double, int>>& offers,
+                            const std::vector<Keypoint>& train) {
+  if (best.index < 0) return;
+  const int octave = train[static_cast<std::size_t>(best.index)].octave;
+  best.second = kNoDistance;
+  for (const auto& [d, j] : offers) {
+    if (j != best.index && train[static_cast<std::size_t>(j)].octave == octave) {
+      best.second = std::min(best.second, d);
+    }
+  }
+}
+
+}  // namespace
 
 std::vector<Match> matchByProjection(const FeatureSet& query,
                                      const std::vector<Eigen::Vector2d>& predicted,
@@ -292,22 +315,26 @@ std::vector<Match> matchByProjection(const FeatureSet& query,
   }
   const double max_distance = distance.bound(options.max_distance, options.max_l2_distance);
   std::vector<Match> matches;
+  std::vector<std::pair<double, int>> offers;  // (distance, train index) for ratio_within_octave
   for (std::size_t i = 0; i < query.size(); ++i) {
     if (!predicted[i].allFinite()) continue;
-    int min_octave = 0, max_octave = INT_MAX;
-    if (options.max_octave_difference >= 0) {
-      min_octave = query.keypoints[i].octave - options.max_octave_difference;
-      max_octave = query.keypoints[i].octave + options.max_octave_difference;
-    }
+    const int octave = query.keypoints[i].octave;
+    const int min_octave = octave + options.min_octave_offset;
+    const int max_octave = octave + options.max_octave_offset;
+    const double radius = options.radius_px * std::pow(options.radius_octave_scale, octave);
     const int class_id = query.keypoints[i].class_id;
     BestTwo best;
-    train_grid.forEachWithin(predicted[i], options.radius_px, min_octave, max_octave, [&](int j) {
+    offers.clear();
+    train_grid.forEachWithin(predicted[i], radius, min_octave, max_octave, [&](int j) {
       if (options.same_class_only &&
           train.keypoints[static_cast<std::size_t>(j)].class_id != class_id) {
         return;
       }
-      best.offer(distance(static_cast<int>(i), j), j);
+      const double d = distance(static_cast<int>(i), j);
+      best.offer(d, j);
+      if (options.ratio_within_octave) offers.emplace_back(d, j);
     });
+    if (options.ratio_within_octave) keepSecondAtBestOctave(best, offers, train.keypoints);
     if (best.accepted(max_distance, options.ratio)) {
       matches.push_back({static_cast<int>(i), best.index, best.best});
     }

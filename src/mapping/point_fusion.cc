@@ -44,14 +44,6 @@ double descriptorDistance(const cv::Mat& point, const cv::Mat& rows, int j) {
   return features::l2Distance(point.ptr<float>(0), rows.ptr<float>(j), point.cols);
 }
 
-/// The octave the point should be detected at from `distance` (ORB-SLAM's PredictScale).
-int predictedOctave(const map::MapPoint& point, double distance, const map::MapOptions& pyramid) {
-  if (pyramid.num_levels <= 1 || !(point.max_distance_m > 0.0) || !(distance > 0.0)) return 0;
-  const double level =
-      std::ceil(std::log(point.max_distance_m / distance) / std::log(pyramid.scale_factor));
-  return static_cast<int>(std::clamp(level, 0.0, static_cast<double>(pyramid.num_levels - 1)));
-}
-
 std::vector<map::MapPointId> pointsOf(const map::KeyFrame& keyframe) {
   std::set<map::MapPointId> ids;
   for (const map::MapPointId id : keyframe.map_points)
@@ -156,7 +148,8 @@ void PointFuser::fuseOne(map::Map& map, View& view, map::MapPointId point_id,
   if (!(p_c.z() > 0.0) || !map::withinViewingLimits(*point, view.centre_w)) return;
   const Eigen::Vector2d u = p_c.head<2>() / p_c.z();
   const map::MapOptions& pyramid = map.options();
-  const int level = predictedOctave(*point, (point->p_w - view.centre_w).norm(), pyramid);
+  const int level = map::predictedOctave(*point, (point->p_w - view.centre_w).norm(),
+                                         pyramid.scale_factor, pyramid.num_levels);
   const double radius = options_.radius_px * std::pow(pyramid.scale_factor, level) / focal_px_;
   const bool binary = point->descriptor.type() == CV_8UC1;
   const double bound = binary ? options_.max_distance : options_.max_l2_distance;

@@ -712,6 +712,11 @@ std::vector<features::Match> Tracker::matchLocalPoints(
     visible.push_back(static_cast<int>(k));
     predicted.push_back(*pixel);
     query.keypoints.push_back(queryKeypoint(points[k].id));
+    if (options_.predict_octave && points[k].point.max_distance_m > 0.0) {
+      query.keypoints.back().octave =
+          map::predictedOctave(points[k].point, (points[k].point.p_w - centre_w).norm(),
+                               pyramid_.scale_factor, pyramid_.levels);
+    }
     rows.push_back(descriptor);
   }
   if (visible.empty()) return {};

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <tuple>
 
 #include "feature_test_util.h"
 #include "superdyna/core/error.h"
@@ -180,6 +181,82 @@ TEST(ProjectionMatcherTest, EqualDistancesGoToTheLowerTrainIndexWhateverTheCellO
   EXPECT_EQ(matches[0].train, 0);
 }
 
+/// One query keypoint at (100, 100) and the train keypoints given as (x offset, octave, descriptor
+/// byte), all at y = 100 with 32-byte descriptors filled with that byte.
+struct ProjectionCase {
+  FeatureSet query, train;
+  ProjectionCase(int query_octave, const std::vector<std::tuple<double, int, std::uint8_t>>& rows) {
+    query.image_size = train.image_size = cv::Size(752, 480);
+    query.descriptor_type = train.descriptor_type = DescriptorType::kBinary;
+    query.keypoints.resize(1);
+    query.keypoints[0].pixel = Eigen::Vector2d(100.0, 100.0);
+    query.keypoints[0].octave = query_octave;
+    query.descriptors = cv::Mat(1, 32, CV_8UC1, cv::Scalar(0));
+    train.descriptors = cv::Mat(static_cast<int>(rows.size()), 32, CV_8UC1);
+    for (std::size_t j = 0; j < rows.size(); ++j) {
+      const auto& [dx, octave, byte] = rows[j];
+      Keypoint kp;
+      kp.pixel = Eigen::Vector2d(100.0 + dx, 100.0);
+      kp.octave = octave;
+      train.keypoints.push_back(kp);
+      train.descriptors.row(static_cast<int>(j)).setTo(cv::Scalar(byte));
+    }
+  }
+  /// The train index matched, or -1.
+  int match(const ProjectionMatchOptions& options) const {
+    const KeypointGrid grid(train.keypoints, train.image_size);
+    const std::vector<Match> m =
+        matchByProjection(query, {Eigen::Vector2d(100.0, 100.0)}, train, grid, options);
+    return m.empty() ? -1 : m[0].train;
+  }
+};
+
+ProjectionMatchOptions plainProjection() {
+  ProjectionMatchOptions options;
+  options.check_orientation = false;
+  options.ratio = 0.8;
+  return options;
+}
+
+TEST(ProjectionMatcherTest, RatioWithinOctaveIgnoresTheSameCornerAtAnotherLevel) {
+  // Distances to the all-zero query (bits): train 0 at octave 0 and train 1 at octave 1 (the
+  // corner again, one level up) 32 each, train 2 at octave 0 128.
+  const ProjectionCase c(0, {{1.0, 0, 0x01}, {2.0, 1, 0x01}, {3.0, 0, 0x0f}});
+  ProjectionMatchOptions options = plainProjection();
+  EXPECT_EQ(c.match(options), -1) << "32 >= 0.8 * 32: ambiguous across octaves";
+  options.ratio_within_octave = true;
+  EXPECT_EQ(c.match(options), 0) << "32 < 0.8 * 128 against octave 0's second best";
+  // An equally close second at the best's own octave still rejects the match.
+  const ProjectionCase same(0, {{1.0, 0, 0x01}, {2.0, 0, 0x01}});
+  EXPECT_EQ(same.match(options), -1);
+}
+
+TEST(ProjectionMatcherTest, RadiusGrowsWithTheQueryOctave) {
+  // The only candidate lies 10 px away; the query is at octave 2.
+  const ProjectionCase c(2, {{10.0, 2, 0x00}});
+  ProjectionMatchOptions options = plainProjection();
+  options.radius_px = 8.0;
+  EXPECT_EQ(c.match(options), -1);
+  options.radius_octave_scale = 1.2;  // 8 * 1.44 = 11.5 px
+  EXPECT_EQ(c.match(options), 0);
+  options.radius_octave_scale = 0.9;
+  EXPECT_THROW(c.match(options), OptionError);
+}
+
+TEST(ProjectionMatcherTest, OctaveWindowIsRelativeToTheQueryOctave) {
+  const ProjectionCase c(3, {{1.0, 1, 0x00}, {2.0, 2, 0x00}, {3.0, 3, 0x00}, {4.0, 4, 0x00}});
+  ProjectionMatchOptions options = plainProjection();
+  options.ratio = 1.0;
+  options.min_octave_offset = 1;  // only octave 4
+  options.max_octave_offset = 1;
+  EXPECT_EQ(c.match(options), 3);
+  options.min_octave_offset = -1;  // ORB-SLAM's window: octaves 2 and 3, ties to the lower index
+  options.max_octave_offset = 0;
+  EXPECT_EQ(c.match(options), 1);
+  options.min_octave_offset = 2;
+  EXPECT_THROW(c.match(options), OptionError);
+}
+
 TEST(ProjectionMatcherTest, FindsTheKeypointsNearTheirPredictedPositions) {
   // The second image is the first shifted by (12, -7) px; predictions carry 2 px of error.
   const cv::Mat big = test::texturedImage(800, 520, 4);
@@ -200,7 +277,8 @@ TEST(ProjectionMatcherTest, FindsTheKeypointsNearTheirPredictedPositions) {
   }
   ProjectionMatchOptions options;
   options.radius_px = 8.0;
-  options.max_octave_difference = 1;
+  options.min_octave_offset = -1;
+  options.max_octave_offset = 1;
   const std::vector<Match> matches = matchByProjection(a, predicted, b, grid, options);
   int correct = 0;
   std::vector<int> used(b.size(), 0);

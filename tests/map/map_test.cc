@@ -736,5 +736,17 @@ TEST(MapCorrections, AreLoggedAndLookedUpByTime) {
   EXPECT_TRUE(map.correctionsSince(2).empty());
 }
 
+TEST(PredictedOctave, RoundsTheScaleRatioUpWithinThePyramid) {
+  MapPoint point;
+  point.max_distance_m = 12.0;  // seen at octave 0 from 12 m
+  EXPECT_EQ(predictedOctave(point, 20.0, 1.2, 8), 0) << "farther than the range: finest";
+  EXPECT_EQ(predictedOctave(point, 11.0, 1.2, 8), 1);  // log(12/11)/log(1.2) = 0.48
+  EXPECT_EQ(predictedOctave(point, 5.0, 1.2, 8), 5);   // 4.80
+  EXPECT_EQ(predictedOctave(point, 1.0, 1.2, 8), 7) << "13.6, clamped to the coarsest";
+  EXPECT_EQ(predictedOctave(point, 5.0, 1.2, 1), 0) << "single-scale extractor";
+  point.max_distance_m = 0.0;
+  EXPECT_EQ(predictedOctave(point, 5.0, 1.2, 8), 0) << "no range yet";
+}
+
 }  // namespace
 }  // namespace superdyna::map

@@ -57,7 +57,10 @@ projection:
   max_distance: 90
   max_l2_distance: 0.85
   ratio: 0.8
-  max_octave_difference: 1
+  min_octave_offset: -1
+  max_octave_offset: 0
+  radius_octave_scale: 1.2
+  ratio_within_octave: true
   check_orientation: false
 pose:
   rounds: 5
@@ -92,6 +95,7 @@ tracker:
   imu_reanchor: false
   imu_max_gap_s: 0.2
   viewing_limits: false
+  predict_octave: true
   reference_matching: false
   reference_max_distance: 60
   reference_max_l2_distance: 0.95
@@ -285,7 +289,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 224u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 228u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

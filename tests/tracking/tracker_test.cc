@@ -493,6 +493,63 @@ TEST(Tracker, FirstFrameOfAMapIsTrackedFromTheReferenceKeyFrame) {
   EXPECT_GE(with.inliers, 195);
 }
 
+TEST(Tracker, SearchesMapPointsAtTheOctavePredictedFromTheirDistance) {
+  // 200 points 6.2-8 m ahead, seen at octave 0 by the first frame (the map's only keyframe). The
+  // camera then moves 1 m forward per frame; at 2 m closer the points appear 1.3-1.5 times larger
+  // and the extractor finds them at octave 2, while a look-alike keypoint (same descriptor) lies
+  // 3 px from each of them at octave 0. Searching octaves [L - 1, L] about the octave L of the
+  // point's first observation (0) finds only the look-alikes; about the octave predicted from
+  // the distance (2 or 3) it finds the points themselves.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> x(-2.0, 2.0), y(-1.2, 1.2), z(6.2, 8.0), angle(0, 6.28);
+  std::normal_distribution<float> normal;
+  const sim::RigOptions rig;
+  std::vector<Eigen::Vector3d> p_w;
+  cv::Mat descriptors(200, 64, CV_32FC1);
+  for (int k = 0; k < 200; ++k) {
+    p_w.push_back(rig.T_b_c0() * Eigen::Vector3d(x(rng), y(rng), z(rng)));
+    for (int c = 0; c < 64; ++c)
+      descriptors.at<float>(k, c) = normal(rng);
+    cv::normalize(descriptors.row(k), descriptors.row(k));
+  }
+  const auto forward = [&](double metres) {
+    return SE3d(Eigen::Quaterniond::Identity(),
+                rig.T_b_c0().rotation() * Eigen::Vector3d(0.0, 0.0, metres));
+  };
+  const Frame first = syntheticFrame(0, forward(0.0), p_w, descriptors, true);
+  const Frame second = syntheticFrame(secondsToNs(0.05), forward(1.0), p_w, descriptors, false);
+  const Frame plain = syntheticFrame(secondsToNs(0.1), forward(2.0), p_w, descriptors, false);
+  std::vector<std::pair<int, Eigen::Vector2d>> decoys;
+  for (int k = 0; k < 200; ++k) {
+    const double a = angle(rng);
+    decoys.emplace_back(k, plain.features.keypoints[static_cast<std::size_t>(k)].pixel +
+                               3.0 * Eigen::Vector2d(std::cos(a), std::sin(a)));
+  }
+  Frame third = syntheticFrame(secondsToNs(0.1), forward(2.0), p_w, descriptors, false, decoys);
+  for (int k = 0; k < 200; ++k)
+    third.features.keypoints[static_cast<std::size_t>(k)].octave = 2;
+
+  const auto trackThird = [&](bool predict_octave) {
+    TrackerOptions options;
+    options.predict_octave = predict_octave;
+    options.projection.min_octave_offset = -1;
+    options.projection.max_octave_offset = 0;
+    options.keyframe_max_interval_s = 100.0;  // the first frame stays the only keyframe
+    options.keyframe_min_tracked = 0;
+    options.keyframe_tracked_ratio = 0.1;
+    Tracker tracker = makeTracker(options);
+    EXPECT_EQ(tracker.track(first).state, TrackingState::kInitialized);
+    EXPECT_EQ(tracker.track(second).state, TrackingState::kTracking);
+    return tracker.track(third);
+  };
+  const TrackingResult predicted = trackThird(true);
+  EXPECT_EQ(predicted.state, TrackingState::kTracking);
+  EXPECT_LT((predicted.T_w_b.t - forward(2.0).t).norm(), 1e-3);
+  EXPECT_GE(predicted.inliers, 195);
+  const TrackingResult observed = trackThird(false);
+  EXPECT_LT(observed.inliers, 100);
+}
+
 TEST(Tracker, KeyFrameKeypointsWhoseUndistortionFailedStayInvalid) {
   // The front end gives NaN normalised coordinates (and no stereo) where undistortion failed. The
   // keyframe must keep them invalid rather than place them at the principal point (0, 0), where

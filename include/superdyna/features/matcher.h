@@ -173,8 +173,18 @@ struct ProjectionMatchOptions {
   double max_l2_distance = 1.0;  ///< Largest accepted Euclidean distance (float), >= 0.
   /// best < ratio * second best among the candidates in the radius; in (0, 1], 1 disables it.
   double ratio = 0.9;
-  /// Candidates must satisfy |octave - query octave| <= this; < 0 accepts every octave.
-  int max_octave_difference = -1;
+  /// Candidates' octaves lie in [query octave + min_octave_offset, query octave +
+  /// max_octave_offset]; the defaults accept every octave. ORB-SLAM's local-map search: -1 and 0
+  /// about the point's predicted octave (map::predictedOctave rounds up).
+  int min_octave_offset = -100;
+  int max_octave_offset = 100;
+  /// The radius grows with the query's octave: radius_px * radius_octave_scale^octave, >= 1
+  /// (ORB-SLAM: the pyramid's scale factor, as a coarser keypoint is located less precisely); 1
+  /// keeps it fixed.
+  double radius_octave_scale = 1.0;
+  /// The ratio test compares the best candidate only with the others at the best's octave
+  /// (ORB-SLAM): the same corner detected at two pyramid levels is one candidate, not an ambiguity.
+  bool ratio_within_octave = false;
   /// Apply filterByOrientation() to the result (skipped when a set has no orientations).
   bool check_orientation = true;
   OrientationCheckOptions orientation;

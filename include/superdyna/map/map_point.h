@@ -3,6 +3,8 @@
 // it, its semantic label and the viewing geometry used for scale-invariant matching.
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <opencv2/core.hpp>
@@ -77,6 +79,17 @@ inline bool withinViewingLimits(const MapPoint& point, const Eigen::Vector3d& ce
   const double normal_norm = point.normal_w.norm();
   return !(normal_norm > 0.0) ||
          ray.dot(point.normal_w) >= limits.min_cos_angle * distance * normal_norm;
+}
+
+/// The pyramid octave at which a camera at `distance` [m] from the point should detect it
+/// (ORB-SLAM's MapPoint::PredictScale): ceil(log(max_distance_m / distance) / log(scale_factor))
+/// within [0, num_levels - 1]; 0 for a single level or a point without a distance range yet.
+inline int predictedOctave(const MapPoint& point, double distance, double scale_factor,
+                           int num_levels) {
+  if (num_levels <= 1 || !(point.max_distance_m > 0.0) || !(distance > 0.0)) return 0;
+  const double octave =
+      std::ceil(std::log(point.max_distance_m / distance) / std::log(scale_factor));
+  return static_cast<int>(std::clamp(octave, 0.0, static_cast<double>(num_levels - 1)));
 }
 
 }  // namespace superdyna::map

@@ -138,6 +138,11 @@ struct TrackerOptions {
   /// searched: restricting the search itself (as ORB-SLAM does) lost track once on the 3 s
   /// monocular street flight of tracker_test.
   bool viewing_limits = true;
+  /// Local-map points are searched at the octave predicted from their distance
+  /// (map::predictedOctave, ORB-SLAM's local-map search) instead of the octave of their oldest
+  /// observation; `projection`'s octave window, radius growth and within-octave ratio test apply
+  /// to that octave.
+  bool predict_octave = false;
   /// Pose from the reference keyframe without a prediction (reference_matching.h): for frames whose
   /// motion is unknown and as a retry before a frame is declared lost.
   ReferenceMatchingOptions reference_matching;
