@@ -271,6 +271,11 @@ void ProjectionMatchOptions::validate() const {
   if (max_distance < 0) throw OptionError("max_distance", "must be >= 0");
   if (!(max_l2_distance >= 0.0)) throw OptionError("max_l2_distance", "must be >= 0");
   requireRatio(ratio);
+  if (min_octave_offset < -kMaxOctaveOffset || max_octave_offset > kMaxOctaveOffset) {
+    throw OptionError(
+        min_octave_offset < -kMaxOctaveOffset ? "min_octave_offset" : "max_octave_offset",
+        "must lie in [-100, 100]");
+  }
   if (min_octave_offset > max_octave_offset) {
     throw OptionError("min_octave_offset", "must be <= max_octave_offset");
   }

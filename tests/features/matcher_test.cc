@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <tuple>
@@ -254,6 +255,9 @@ TEST(ProjectionMatcherTest, OctaveWindowIsRelativeToTheQueryOctave) {
   options.max_octave_offset = 0;
   EXPECT_EQ(c.match(options), 1);
   options.min_octave_offset = 2;
+  EXPECT_THROW(c.match(options), OptionError);
+  options.min_octave_offset = -1;
+  options.max_octave_offset = std::numeric_limits<int>::max();  // would overflow octave + offset
   EXPECT_THROW(c.match(options), OptionError);
 }
 

@@ -174,10 +174,12 @@ struct ProjectionMatchOptions {
   /// best < ratio * second best among the candidates in the radius; in (0, 1], 1 disables it.
   double ratio = 0.9;
   /// Candidates' octaves lie in [query octave + min_octave_offset, query octave +
-  /// max_octave_offset]; the defaults accept every octave. ORB-SLAM's local-map search: -1 and 0
-  /// about the point's predicted octave (map::predictedOctave rounds up).
-  int min_octave_offset = -100;
-  int max_octave_offset = 100;
+  /// max_octave_offset], offsets within [-kMaxOctaveOffset, kMaxOctaveOffset]; the defaults accept
+  /// every octave. ORB-SLAM's local-map search: -1 and 0 about the point's predicted octave
+  /// (map::predictedOctave rounds up).
+  static constexpr int kMaxOctaveOffset = 100;
+  int min_octave_offset = -kMaxOctaveOffset;
+  int max_octave_offset = kMaxOctaveOffset;
   /// The radius grows with the query's octave: radius_px * radius_octave_scale^octave, >= 1
   /// (ORB-SLAM: the pyramid's scale factor, as a coarser keypoint is located less precisely); 1
   /// keeps it fixed.
