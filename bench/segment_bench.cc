@@ -1,12 +1,15 @@
 // Instance segmentation over a folder of images (not a test): per frame the instances a YOLO
-// model finds by class, with their mask areas, and the time per image; optionally overlay PNGs.
+// model (or SAM prompted by YOLOX boxes) finds by class, with their mask areas, and the time per
+// image; optionally overlay PNGs.
 //
 //   superdyna_segment_bench --images ../shared/data/kitti/snippet_1/image_l
-//       [--model ../shared/models/yolov8n-seg-int8.onnx] [--frames N] [--threads 2]
-//       [--resize 752x480] [--overlay DIR] [--quiet]
+//       [--segmenter yolo|sam] [--model ../shared/models/yolov8n-seg-int8.onnx] [--frames N]
+//       [--threads 2] [--resize 752x480] [--overlay DIR] [--quiet]
 //
-// Times are wall-clock per call of YoloSegmenter::segment (letterbox, ONNX Runtime, decoding)
-// after one warm-up run; on a shared machine they include whatever else runs on the cores.
+// Times are wall-clock per call of Segmenter::segment (pre-processing, ONNX Runtime, decoding;
+// yolo after one warm-up run); on a shared machine they include whatever else runs on the cores.
+// sam: the detector and decoder models are looked up as the run command does
+// ($SUPERDYNA_MODEL_DIR, then models/; yolox_nano.onnx defaults to ../shared/models).
 
 #include <fmt/format.h>
 
@@ -14,12 +17,14 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
 #include "superdyna/semantics/overlay.h"
+#include "superdyna/semantics/sam_segmenter.h"
 #include "superdyna/semantics/yolo_segmenter.h"
 
 namespace fs = std::filesystem;
@@ -51,11 +56,19 @@ int main(int argc, char** argv) {
   CLI::App app("Instance segmentation benchmark");
   semantics::YoloOptions options;
   options.model = std::string(SUPERDYNA_SHARED_DIR) + "/models/yolov8n-seg-int8.onnx";
+  semantics::SamOptions sam_options;
+  sam_options.detector_model = std::string(SUPERDYNA_SHARED_DIR) + "/models/yolox_nano.onnx";
+  std::string backend = "yolo";
   fs::path images, overlay;
   int frames = 0;
   std::string resize;
   bool quiet = false;
+  app.add_option("--segmenter", backend, "yolo or sam")
+      ->check(CLI::IsMember({"yolo", "sam"}))
+      ->capture_default_str();
   app.add_option("--model", options.model, "YOLOv8-seg ONNX file")->capture_default_str();
+  app.add_option("--detector", sam_options.detector_model, "sam: the YOLOX ONNX file")
+      ->capture_default_str();
   app.add_option("--images", images, "Folder of images")->required()->check(CLI::ExistingDirectory);
   app.add_option("--frames", frames, "At most this many images (0 = all)");
   app.add_option("--threads", options.inference_threads, "ONNX Runtime threads")
@@ -67,7 +80,16 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    semantics::YoloSegmenter segmenter(options, semantics::Taxonomy{});
+    sam_options.inference_threads = options.inference_threads;
+    std::unique_ptr<semantics::YoloSegmenter> yolo;
+    std::unique_ptr<semantics::SamSegmenter> sam;
+    if (backend == "sam") {
+      sam = std::make_unique<semantics::SamSegmenter>(sam_options, semantics::Taxonomy{});
+    } else {
+      yolo = std::make_unique<semantics::YoloSegmenter>(options, semantics::Taxonomy{});
+    }
+    semantics::Segmenter& segmenter =
+        sam ? static_cast<semantics::Segmenter&>(*sam) : static_cast<semantics::Segmenter&>(*yolo);
     cv::Size target;
     if (!resize.empty() &&
         std::sscanf(resize.c_str(), "%dx%d", &target.width, &target.height) != 2) {
@@ -111,10 +133,14 @@ int main(int argc, char** argv) {
       }
     }
     const double n = std::max<double>(1.0, static_cast<double>(files.size()));
-    fmt::print(
-        "{} of {} images with vehicles; mean per image: segment {:.1f} ms, of which ONNX Runtime "
-        "{:.1f} ms\n",
-        with_vehicles, files.size(), total_ms / n, segmenter.meanInferenceMs());
+    const std::string networks =
+        sam ? fmt::format(
+                  "YOLOX {:.1f} ms per image, SAM encoder {:.1f} ms per image with "
+                  "detections, SAM decoder {:.1f} ms per detection",
+                  sam->meanDetectorMs(), sam->meanEncoderMs(), sam->meanDecoderMs())
+            : fmt::format("ONNX Runtime {:.1f} ms", yolo->meanInferenceMs());
+    fmt::print("{} of {} images with vehicles; mean per image: segment {:.1f} ms, of which {}\n",
+               with_vehicles, files.size(), total_ms / n, networks);
   } catch (const std::exception& e) {
     fmt::print(stderr, "error: {}\n", e.what());
     return 2;

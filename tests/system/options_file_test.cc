@@ -226,6 +226,15 @@ semantics:
   maskrcnn_min_area_px: 60
   maskrcnn_max_detections: 40
   maskrcnn_inference_threads: 1
+  sam_encoder_model: "sam_vit_b_encoder.onnx"
+  sam_decoder_model: "sam_vit_b_decoder.onnx"
+  sam_detector_model: "yolox_s.onnx"
+  sam_detector_score_threshold: 0.4
+  sam_nms_iou: 0.5
+  sam_mask_threshold: -0.5
+  sam_min_area_px: 80
+  sam_max_detections: 12
+  sam_inference_threads: 1
   pedestrian_labels: "person,rider"
   vehicle_labels: "car,truck"
   other_movable_labels: "dog"
@@ -289,7 +298,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 228u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 237u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

