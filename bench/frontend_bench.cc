@@ -35,8 +35,8 @@ fs::path fromEnvironmentOr(const char* variable, const fs::path& fallback) {
 
 /// One stereo frame of the EuRoC excerpt with its calibration, loaded once.
 struct StereoSample {
-  io::FrameBundle frame;
-  io::CameraCalibration cam0, cam1;
+  sensors::FrameBundle frame;
+  sensors::CameraCalibration cam0, cam1;
 };
 
 const std::optional<StereoSample>& stereoSample() {

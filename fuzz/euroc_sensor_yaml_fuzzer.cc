@@ -15,11 +15,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   writeFile(file, input.rest);
   expectOnlyInputErrors([&] {
     if (input.selector % 2 == 0) {
-      const superdyna::io::CameraCalibration calibration =
+      const superdyna::sensors::CameraCalibration calibration =
           superdyna::io::readCameraCalibration(file);
       (void)calibration.cameraModel();  // the calibration must make a camera model
     } else {
-      const superdyna::io::ImuCalibration calibration = superdyna::io::readImuCalibration(file);
+      const superdyna::sensors::ImuCalibration calibration =
+          superdyna::io::readImuCalibration(file);
       (void)calibration.periodNs();
     }
   });

@@ -74,7 +74,7 @@ map::MapIdentity stereoInertialOrb() {
   identity.descriptor_type = map::MapDescriptorType::kBinary;
   identity.descriptor_columns = 32;
   identity.sensor_mode = "stereo-inertial";
-  io::CameraCalibration camera;
+  sensors::CameraCalibration camera;
   camera.name = "cam0";
   camera.width = 8;
   camera.height = 6;

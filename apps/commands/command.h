@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace superdyna::apps {
 
@@ -19,13 +20,23 @@ class Command {
 
 /// Declares `--dataset euroc|kitti` (into `kind`) and the required `--path DIR` (into `path`), the
 /// options of every command that reads a sequence.
-inline void addDatasetOptions(CLI::App& sub, std::string& kind, std::filesystem::path& path) {
+inline void addDatasetOptions(CLI::App& sub, std::string& kind, std::filesystem::path& path,
+                              bool bags = false) {
+  std::vector<std::string> kinds = {"euroc", "kitti"};
+  if (bags) kinds.push_back("rosbag");
   sub.add_option("--dataset", kind, "Dataset layout")
-      ->check(CLI::IsMember({"euroc", "kitti"}))
+      ->check(CLI::IsMember(kinds))
       ->capture_default_str();
-  sub.add_option("--path", path, "Sequence folder (EuRoC: the one holding mav0/)")
-      ->required()
-      ->check(CLI::ExistingDirectory);
+  CLI::Option* option =
+      sub.add_option("--path", path,
+                     bags ? "Sequence folder (EuRoC: the one holding mav0/), or the .bag file"
+                          : "Sequence folder (EuRoC: the one holding mav0/)")
+          ->required();
+  if (bags) {
+    option->check(CLI::ExistingPath);
+  } else {
+    option->check(CLI::ExistingDirectory);
+  }
 }
 
 }  // namespace superdyna::apps

@@ -6,8 +6,12 @@
 #include <filesystem>
 #include <string>
 
+#include "superdyna/core/error.h"
 #include "superdyna/io/euroc_dataset.h"
 #include "superdyna/io/kitti_dataset.h"
+#ifdef SUPERDYNA_WITH_ROSBAG
+#include "superdyna/bag/rosbag_reader.h"
+#endif
 
 namespace superdyna::apps {
 
@@ -20,7 +24,7 @@ std::string describeRange(const TimeRange& range) {
                      formatNsAsSeconds(range.end), range.durationSeconds());
 }
 
-std::string describeCamera(const io::CameraCalibration& c) {
+std::string describeCamera(const sensors::CameraCalibration& c) {
   std::string coefficients;
   for (double k : c.distortion)
     coefficients += fmt::format(" {:.6g}", k);
@@ -71,12 +75,27 @@ void printKitti(const fs::path& path) {
     fmt::print("  warning: {}\n", warning);
 }
 
+void printBag(const fs::path& path) {
+#ifdef SUPERDYNA_WITH_ROSBAG
+  const bag::RosbagReader reader = bag::RosbagReader::open(path);
+  fmt::print("ROS bag {}: {} topics\n", path.string(), reader.topics().size());
+  for (const bag::BagTopic& topic : reader.topics())
+    fmt::print("  {}  {}  {} messages\n", topic.name, topic.type, topic.messages);
+#else
+  throw InputError(InputLocation{path},
+                   "this build has no ROS bag support: install Debian's librosbag-storage-dev and "
+                   "libsensor-msgs-dev and build again (scripts/setup.sh does both)");
+#endif
+}
+
 class InfoCommand : public Command {
  public:
   explicit InfoCommand(CLI::App& app) {
     sub_ = app.add_subcommand(
-        "info", "Read and validate a dataset folder and summarise its streams and calibration");
-    addDatasetOptions(*sub_, kind_, path_);
+        "info",
+        "Read and validate a dataset folder and summarise its streams and calibration, or list "
+        "the topics of a ROS 1 bag (--dataset rosbag)");
+    addDatasetOptions(*sub_, kind_, path_, /*bags=*/true);
   }
 
   CLI::App* subcommand() const override { return sub_; }
@@ -84,6 +103,8 @@ class InfoCommand : public Command {
   int run() override {
     if (kind_ == "kitti") {
       printKitti(path_);
+    } else if (kind_ == "rosbag") {
+      printBag(path_);
     } else {
       printEuroc(path_);
     }

@@ -96,7 +96,7 @@ class OverlayWriter {
     fs::create_directories(dir_);
   }
 
-  void remember(const io::FrameBundle& bundle, const tracking::Frame& frame) {
+  void remember(const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
     if (bundle.index % static_cast<std::size_t>(every_) != 0) return;
     Pending pending{
         bundle.index, bundle.image0, bundle.masks.value_or(sensors::InstanceMasks{}), {}};
@@ -303,14 +303,16 @@ class StopSignals {
 class StoppableSource final : public io::DatasetSource {
  public:
   explicit StoppableSource(io::DatasetSource& source) : source_(source) {}
-  std::optional<io::FrameBundle> next() override {
+  std::optional<sensors::FrameBundle> next() override {
     if (StopSignals::received() != 0) return std::nullopt;
     return source_.next();
   }
   std::size_t size() const override { return source_.size(); }
-  const io::CameraCalibration& camera0() const override { return source_.camera0(); }
-  const std::optional<io::CameraCalibration>& camera1() const override { return source_.camera1(); }
-  const std::optional<io::ImuCalibration>& imu() const override { return source_.imu(); }
+  const sensors::CameraCalibration& camera0() const override { return source_.camera0(); }
+  const std::optional<sensors::CameraCalibration>& camera1() const override {
+    return source_.camera1();
+  }
+  const std::optional<sensors::ImuCalibration>& imu() const override { return source_.imu(); }
   Trajectory groundTruth() const override { return source_.groundTruth(); }
   const std::vector<std::string>& warnings() const override { return source_.warnings(); }
 
@@ -668,7 +670,7 @@ class RunCommand : public Command {
                       options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
                           options.tracker.dynamic.geometric);
       slam.setFrontEndCallback(
-          [&overlay](const io::FrameBundle& bundle, const tracking::Frame& frame) {
+          [&overlay](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
             overlay->remember(bundle, frame);
           });
     }

@@ -138,7 +138,8 @@ void StereoMatchOptions::validate() const {
   }
 }
 
-StereoMatcher::StereoMatcher(const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+StereoMatcher::StereoMatcher(const sensors::CameraCalibration& cam0,
+                             const sensors::CameraCalibration& cam1,
                              const StereoMatchOptions& options)
     : camera0_(cam0.cameraModel()),
       camera1_(cam1.cameraModel()),

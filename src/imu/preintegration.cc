@@ -26,14 +26,14 @@ struct Signal {
 };
 
 /// The linear interpolation of the samples at t_ns; the nearest sample outside their range.
-Signal signalAt(std::span<const io::ImuSample> samples, TimeNs t_ns) {
+Signal signalAt(std::span<const sensors::ImuSample> samples, TimeNs t_ns) {
   if (t_ns <= samples.front().t_ns) return {samples.front().gyro, samples.front().accel};
   if (t_ns >= samples.back().t_ns) return {samples.back().gyro, samples.back().accel};
   const auto after =
       std::upper_bound(samples.begin(), samples.end(), t_ns,
-                       [](TimeNs t, const io::ImuSample& sample) { return t < sample.t_ns; });
-  const io::ImuSample& s1 = *after;
-  const io::ImuSample& s0 = *(after - 1);
+                       [](TimeNs t, const sensors::ImuSample& sample) { return t < sample.t_ns; });
+  const sensors::ImuSample& s1 = *after;
+  const sensors::ImuSample& s0 = *(after - 1);
   const double u = static_cast<double>(t_ns - s0.t_ns) / static_cast<double>(s1.t_ns - s0.t_ns);
   return {(1.0 - u) * s0.gyro + u * s1.gyro, (1.0 - u) * s0.accel + u * s1.accel};
 }
@@ -48,7 +48,7 @@ Eigen::Vector3d gravityVector() {
   return {0.0, 0.0, -kGravity};
 }
 
-ImuNoise ImuNoise::fromCalibration(const io::ImuCalibration& calibration) {
+ImuNoise ImuNoise::fromCalibration(const sensors::ImuCalibration& calibration) {
   ImuNoise noise;
   noise.gyro_noise_density = calibration.gyroscope_noise_density;
   noise.accel_noise_density = calibration.accelerometer_noise_density;
@@ -96,7 +96,7 @@ void Preintegration::integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3
   propagate(steps_.back());
 }
 
-void Preintegration::integrateBetween(std::span<const io::ImuSample> samples, TimeNs t0_ns,
+void Preintegration::integrateBetween(std::span<const sensors::ImuSample> samples, TimeNs t0_ns,
                                       TimeNs t1_ns) {
   if (t1_ns <= t0_ns) throw OptionError("t1_ns", "must be after t0_ns");
   if (samples.empty()) throw OptionError("samples", "must not be empty");
@@ -108,7 +108,7 @@ void Preintegration::integrateBetween(std::span<const io::ImuSample> samples, Ti
   // Break points: t0, every sample time strictly inside (t0, t1), t1.
   auto next =
       std::upper_bound(samples.begin(), samples.end(), t0_ns,
-                       [](TimeNs t, const io::ImuSample& sample) { return t < sample.t_ns; });
+                       [](TimeNs t, const sensors::ImuSample& sample) { return t < sample.t_ns; });
   TimeNs t_a = t0_ns;
   Signal s_a = signalAt(samples, t_a);
   while (t_a < t1_ns) {

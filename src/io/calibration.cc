@@ -79,14 +79,14 @@ int pixelCount(double value, const std::string& what, const InputLocation& where
   return static_cast<int>(value);
 }
 
-void readResolution(const YamlFile& yaml, CameraCalibration& calibration) {
+void readResolution(const YamlFile& yaml, sensors::CameraCalibration& calibration) {
   const YAML::Node node = yaml.child("resolution");
   const std::vector<double> size = exactNumbers(yaml, node, "resolution", 2);
   calibration.width = pixelCount(size[0], "width", yaml.at(node, "resolution"));
   calibration.height = pixelCount(size[1], "height", yaml.at(node, "resolution"));
 }
 
-void readIntrinsics(const YamlFile& yaml, CameraCalibration& calibration) {
+void readIntrinsics(const YamlFile& yaml, sensors::CameraCalibration& calibration) {
   const YAML::Node node = yaml.child("intrinsics");
   const std::vector<double> k = exactNumbers(yaml, node, "intrinsics", 4);
   requirePositive(k[0], "fx", yaml.at(node, "intrinsics"));
@@ -97,7 +97,7 @@ void readIntrinsics(const YamlFile& yaml, CameraCalibration& calibration) {
   calibration.cy = k[3];
 }
 
-void readDistortion(const YamlFile& yaml, CameraCalibration& calibration) {
+void readDistortion(const YamlFile& yaml, sensors::CameraCalibration& calibration) {
   const YAML::Node model = yaml.child("distortion_model");
   calibration.distortion_model = parseDistortionModel(yaml.scalar(model, "distortion_model"),
                                                       yaml.at(model, "distortion_model"));
@@ -118,8 +118,8 @@ void readDistortion(const YamlFile& yaml, CameraCalibration& calibration) {
 
 }  // namespace
 
-ProjectionModel parseProjectionModel(std::string_view name, const InputLocation& where) {
-  if (name == "pinhole") return ProjectionModel::kPinhole;
+sensors::ProjectionModel parseProjectionModel(std::string_view name, const InputLocation& where) {
+  if (name == "pinhole") return sensors::ProjectionModel::kPinhole;
   throw InputError(where, fmt::format("unsupported camera model '{}' (only 'pinhole')", name));
 }
 
@@ -130,34 +130,9 @@ DistortionModel parseDistortionModel(std::string_view name, const InputLocation&
                                       name));
 }
 
-std::string toString(ProjectionModel model) {
-  switch (model) {
-    case ProjectionModel::kPinhole:
-      return "pinhole";
-  }
-  return "unknown";
-}
-
-CameraModel CameraCalibration::cameraModel() const {
-  return CameraModel(width, height, fx, fy, cx, cy, distortion_model, distortion);
-}
-
-cv::Mat CameraCalibration::cameraMatrix() const {
-  return (cv::Mat_<double>(3, 3) << fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0);
-}
-
-cv::Mat CameraCalibration::distortionCoefficients() const {
-  if (distortion.empty()) return cv::Mat::zeros(1, 4, CV_64F);
-  cv::Mat coefficients(1, static_cast<int>(distortion.size()), CV_64F);
-  for (std::size_t i = 0; i < distortion.size(); ++i) {
-    coefficients.at<double>(0, static_cast<int>(i)) = distortion[i];
-  }
-  return coefficients;
-}
-
-CameraCalibration readCameraCalibration(const fs::path& sensor_yaml) {
+sensors::CameraCalibration readCameraCalibration(const fs::path& sensor_yaml) {
   const YamlFile yaml = YamlFile::load(sensor_yaml);
-  CameraCalibration calibration;
+  sensors::CameraCalibration calibration;
   calibration.name = sensor_yaml.parent_path().filename().string();
   calibration.T_b_c = readTransform(yaml, "T_BS");
   calibration.rate_hz = positiveNumber(yaml, "rate_hz");
@@ -170,9 +145,9 @@ CameraCalibration readCameraCalibration(const fs::path& sensor_yaml) {
   return calibration;
 }
 
-ImuCalibration readImuCalibration(const fs::path& sensor_yaml) {
+sensors::ImuCalibration readImuCalibration(const fs::path& sensor_yaml) {
   const YamlFile yaml = YamlFile::load(sensor_yaml);
-  ImuCalibration calibration;
+  sensors::ImuCalibration calibration;
   calibration.T_b_i = readTransform(yaml, "T_BS");
   calibration.rate_hz = positiveNumber(yaml, "rate_hz");
   calibration.gyroscope_noise_density = positiveNumber(yaml, "gyroscope_noise_density");
@@ -197,7 +172,8 @@ SE3d checkedRigidTransform(const Eigen::Matrix4d& M, const InputLocation& where)
   return SE3d::fromMatrix(M);
 }
 
-void validateCameraCalibration(const CameraCalibration& calibration, const InputLocation& where) {
+void validateCameraCalibration(const sensors::CameraCalibration& calibration,
+                               const InputLocation& where) {
   pixelCount(calibration.width, "width", where);
   pixelCount(calibration.height, "height", where);
   requirePositive(calibration.rate_hz, "rate_hz", where);
@@ -206,7 +182,7 @@ void validateCameraCalibration(const CameraCalibration& calibration, const Input
   requireDistortionCount(calibration.distortion_model, calibration.distortion.size(), where);
 }
 
-cv::Mat loadImage(const fs::path& file, const CameraCalibration& calibration) {
+cv::Mat loadImage(const fs::path& file, const sensors::CameraCalibration& calibration) {
   if (!fs::is_regular_file(file))
     throw InputError(InputLocation{file}, "image file does not exist");
   const cv::Mat image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);

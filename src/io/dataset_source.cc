@@ -39,8 +39,9 @@ std::vector<StereoFrameRef> asStereoRefs(const std::vector<ImageRef>& mono) {
 }
 
 /// IMU samples from the last one at or before t0 to the first one at or after t1.
-std::vector<ImuSample> bracketingImu(const std::vector<ImuSample>& imu, TimeNs t0, TimeNs t1) {
-  const auto by_time = [](const ImuSample& s, TimeNs t) { return s.t_ns < t; };
+std::vector<sensors::ImuSample> bracketingImu(const std::vector<sensors::ImuSample>& imu, TimeNs t0,
+                                              TimeNs t1) {
+  const auto by_time = [](const sensors::ImuSample& s, TimeNs t) { return s.t_ns < t; };
   auto first = std::lower_bound(imu.begin(), imu.end(), t0, by_time);
   if (first != imu.begin() && (first == imu.end() || first->t_ns > t0)) --first;
   auto last = std::lower_bound(imu.begin(), imu.end(), t1, by_time);
@@ -51,10 +52,10 @@ std::vector<ImuSample> bracketingImu(const std::vector<ImuSample>& imu, TimeNs t
 /// A source serving a fixed list of frames; the dataset-specific part adds IMU and ground truth.
 class FrameListSource : public DatasetSource {
  public:
-  std::optional<FrameBundle> next() override {
+  std::optional<sensors::FrameBundle> next() override {
     if (next_ >= frames_.size()) return std::nullopt;
     const StereoFrameRef& ref = frames_[next_];
-    FrameBundle bundle;
+    sensors::FrameBundle bundle;
     bundle.index = next_;
     bundle.t_ns = ref.t_ns;
     bundle.image0 = loadImage(ref.cam0, camera0());
@@ -65,16 +66,16 @@ class FrameListSource : public DatasetSource {
   }
 
   std::size_t size() const override { return frames_.size(); }
-  const std::optional<CameraCalibration>& camera1() const override { return camera1_; }
+  const std::optional<sensors::CameraCalibration>& camera1() const override { return camera1_; }
 
  protected:
   explicit FrameListSource(const DatasetSourceOptions& options) : options_(options) {}
 
   /// Adds the IMU samples and ground truth of frame `index` to its bundle.
-  virtual void addMeasurements(std::size_t index, FrameBundle* bundle) const = 0;
+  virtual void addMeasurements(std::size_t index, sensors::FrameBundle* bundle) const = 0;
 
   DatasetSourceOptions options_;
-  std::optional<CameraCalibration> camera1_;
+  std::optional<sensors::CameraCalibration> camera1_;
   std::vector<StereoFrameRef> frames_;
 
  private:
@@ -103,8 +104,8 @@ class EurocSource : public FrameListSource {
     frames_ = selectFrames(availableFrames(), options, dataset_.root());
   }
 
-  const CameraCalibration& camera0() const override { return dataset_.cam0Calibration(); }
-  const std::optional<ImuCalibration>& imu() const override { return imu_; }
+  const sensors::CameraCalibration& camera0() const override { return dataset_.cam0Calibration(); }
+  const std::optional<sensors::ImuCalibration>& imu() const override { return imu_; }
   const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
 
   Trajectory groundTruth() const override {
@@ -120,7 +121,7 @@ class EurocSource : public FrameListSource {
   }
 
  private:
-  void addMeasurements(std::size_t index, FrameBundle* bundle) const override {
+  void addMeasurements(std::size_t index, sensors::FrameBundle* bundle) const override {
     if (options_.inertial) {
       const TimeNs t_prev = index == 0 ? bundle->t_ns : frames_[index - 1].t_ns;
       bundle->imu = bracketingImu(dataset_.imu(), t_prev, bundle->t_ns);
@@ -131,7 +132,7 @@ class EurocSource : public FrameListSource {
     if (options_.instance_masks) addMasks(frames_[index], bundle);
   }
 
-  void addMasks(const StereoFrameRef& frame, FrameBundle* bundle) const {
+  void addMasks(const StereoFrameRef& frame, sensors::FrameBundle* bundle) const {
     sensors::InstanceMasks masks;
     masks.cam0 = dataset_.loadInstanceMask(frame.cam0, bundle->image0.size());
     if (!bundle->image1.empty()) {
@@ -150,7 +151,7 @@ class EurocSource : public FrameListSource {
   }
 
   EurocDataset dataset_;
-  std::optional<ImuCalibration> imu_;
+  std::optional<sensors::ImuCalibration> imu_;
 };
 
 class KittiSource : public FrameListSource {
@@ -173,8 +174,8 @@ class KittiSource : public FrameListSource {
                      options, dataset_.root());
   }
 
-  const CameraCalibration& camera0() const override { return dataset_.leftCalibration(); }
-  const std::optional<ImuCalibration>& imu() const override { return no_imu_; }
+  const sensors::CameraCalibration& camera0() const override { return dataset_.leftCalibration(); }
+  const std::optional<sensors::ImuCalibration>& imu() const override { return no_imu_; }
   const std::vector<std::string>& warnings() const override { return dataset_.warnings(); }
 
   Trajectory groundTruth() const override {
@@ -186,7 +187,7 @@ class KittiSource : public FrameListSource {
   }
 
  private:
-  void addMeasurements(std::size_t /*index*/, FrameBundle* bundle) const override {
+  void addMeasurements(std::size_t /*index*/, sensors::FrameBundle* bundle) const override {
     bundle->T_w_b_gt = groundTruthAt(bundle->t_ns);
   }
 
@@ -199,7 +200,7 @@ class KittiSource : public FrameListSource {
   }
 
   KittiDataset dataset_;
-  std::optional<ImuCalibration> no_imu_;
+  std::optional<sensors::ImuCalibration> no_imu_;
 };
 
 }  // namespace

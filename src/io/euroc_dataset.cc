@@ -62,7 +62,7 @@ struct ImuGaps {
 };
 
 struct GroundTruthRows {
-  std::vector<GroundTruthState> states;
+  std::vector<sensors::GroundTruthState> states;
   bool full_state = false;
 };
 
@@ -272,13 +272,13 @@ std::string lineRuns(const std::vector<int>& lines, std::size_t max_runs) {
 
 /// An IMU row with its line, for the reports.
 struct ImuRow {
-  ImuSample sample;
+  sensors::ImuSample sample;
   int line = 0;
 };
 
 /// Whether a sample is at or beyond the sensor's range on some axis (a clipped reading); ranges
 /// <= 0 are unknown and never match.
-bool saturated(const ImuSample& sample, const ImuCalibration& calibration) {
+bool saturated(const sensors::ImuSample& sample, const sensors::ImuCalibration& calibration) {
   const auto beyond = [](const Eigen::Vector3d& v, double range) {
     return range > 0.0 && v.cwiseAbs().maxCoeff() >= range;
   };
@@ -286,8 +286,9 @@ bool saturated(const ImuSample& sample, const ImuCalibration& calibration) {
          beyond(sample.accel, calibration.accelerometer_range);
 }
 
-std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& calibration,
-                                  std::vector<std::string>& warnings) {
+std::vector<sensors::ImuSample> readImuCsv(const fs::path& csv,
+                                           const sensors::ImuCalibration& calibration,
+                                           std::vector<std::string>& warnings) {
   static constexpr std::array<const char*, 6> kNames = {"gyro_x",  "gyro_y",  "gyro_z",
                                                         "accel_x", "accel_y", "accel_z"};
   const auto gap_threshold_ns =
@@ -296,7 +297,7 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& cal
   std::vector<int> non_finite_lines, saturated_lines;
   forEachTextRow(csv, Delimiter::kComma, [&](const TextRow& row) {
     requireFieldCount(row, csv, 7, 7);
-    ImuSample sample;
+    sensors::ImuSample sample;
     sample.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
     bool finite = true;
     for (std::size_t i = 0; i < kNames.size(); ++i) {
@@ -328,7 +329,7 @@ std::vector<ImuSample> readImuCsv(const fs::path& csv, const ImuCalibration& cal
   if (rows.empty()) throw InputError(InputLocation{csv}, "no IMU rows found");
   rows = inTimeOrder(
       std::move(rows), [](const ImuRow& row) { return row.sample.t_ns; }, csv, warnings);
-  std::vector<ImuSample> samples;
+  std::vector<sensors::ImuSample> samples;
   samples.reserve(rows.size());
   ImuGaps gaps;
   for (const ImuRow& row : rows) {
@@ -357,8 +358,9 @@ Eigen::Vector3d parseVector3(const TextRow& row, const fs::path& csv, std::size_
   return v;
 }
 
-GroundTruthState parseGroundTruthRow(const TextRow& row, const fs::path& csv, bool full_state) {
-  GroundTruthState state;
+sensors::GroundTruthState parseGroundTruthRow(const TextRow& row, const fs::path& csv,
+                                              bool full_state) {
+  sensors::GroundTruthState state;
   state.t_ns = parseIntegerNs(row.fields[0], row.at(csv, "timestamp"));
   const Eigen::Vector3d p = parseVector3(row, csv, 1, {"p_x", "p_y", "p_z"});
   const double qw = parseFiniteDouble(row.fields[4], row.at(csv, "q_w"));
@@ -518,12 +520,12 @@ std::optional<TimeRange> EurocDataset::groundTruthTimeRange() const {
   return rangeOf(ground_truth_);
 }
 
-std::span<const ImuSample> EurocDataset::imuBetween(TimeNs t0_ns, TimeNs t1_ns) const {
+std::span<const sensors::ImuSample> EurocDataset::imuBetween(TimeNs t0_ns, TimeNs t1_ns) const {
   if (t1_ns < t0_ns) return {};
-  const auto by_time = [](const ImuSample& s, TimeNs t) { return s.t_ns < t; };
+  const auto by_time = [](const sensors::ImuSample& s, TimeNs t) { return s.t_ns < t; };
   const auto first = std::lower_bound(imu_.begin(), imu_.end(), t0_ns, by_time);
-  const auto last = std::upper_bound(first, imu_.end(), t1_ns,
-                                     [](TimeNs t, const ImuSample& s) { return t < s.t_ns; });
+  const auto last = std::upper_bound(
+      first, imu_.end(), t1_ns, [](TimeNs t, const sensors::ImuSample& s) { return t < s.t_ns; });
   return {first, last};
 }
 
@@ -548,16 +550,17 @@ std::vector<ImageRef> EurocDataset::monoFramesWithImuCoverage() const {
 Trajectory EurocDataset::groundTruthTrajectory() const {
   Trajectory trajectory;
   trajectory.reserve(ground_truth_.size());
-  for (const GroundTruthState& state : ground_truth_)
+  for (const sensors::GroundTruthState& state : ground_truth_)
     trajectory.push_back({state.t_ns, state.T_w_b});
   return trajectory;
 }
 
-std::optional<GroundTruthState> EurocDataset::groundTruthNearest(TimeNs t_ns,
-                                                                 TimeNs max_diff_ns) const {
+std::optional<sensors::GroundTruthState> EurocDataset::groundTruthNearest(
+    TimeNs t_ns, TimeNs max_diff_ns) const {
   if (ground_truth_.empty()) return std::nullopt;
-  auto nearest = std::lower_bound(ground_truth_.begin(), ground_truth_.end(), t_ns,
-                                  [](const GroundTruthState& s, TimeNs t) { return s.t_ns < t; });
+  auto nearest =
+      std::lower_bound(ground_truth_.begin(), ground_truth_.end(), t_ns,
+                       [](const sensors::GroundTruthState& s, TimeNs t) { return s.t_ns < t; });
   // The nearest state is the first at or after t_ns, or the one just before it.
   if (nearest == ground_truth_.end() || (nearest != ground_truth_.begin() &&
                                          t_ns - std::prev(nearest)->t_ns < nearest->t_ns - t_ns)) {

@@ -131,8 +131,8 @@ Eigen::Vector3d projectionTranslation(const Projection& P) {
   return {(P(0, 3) - P(0, 2) * tz) / P(0, 0), (P(1, 3) - P(1, 2) * tz) / P(1, 1), tz};
 }
 
-CameraCalibration calibrationFromProjection(const Projection& P, const std::string& name) {
-  CameraCalibration calibration;
+sensors::CameraCalibration calibrationFromProjection(const Projection& P, const std::string& name) {
+  sensors::CameraCalibration calibration;
   calibration.name = name;
   calibration.fx = P(0, 0);
   calibration.fy = P(1, 1);
@@ -214,10 +214,12 @@ std::vector<StereoFrameRef> stereoFramesOf(const fs::path& right_folder,
 }
 
 /// The left camera: intrinsics from its projection matrix, size of the first image.
-CameraCalibration leftCalibrationOf(const std::map<int, Projection>& projections,
-                                    const CameraLayout& layout, const fs::path& first_image,
-                                    const std::vector<TimeNs>& times, const fs::path& calib) {
-  CameraCalibration left = calibrationFromProjection(
+sensors::CameraCalibration leftCalibrationOf(const std::map<int, Projection>& projections,
+                                             const CameraLayout& layout,
+                                             const fs::path& first_image,
+                                             const std::vector<TimeNs>& times,
+                                             const fs::path& calib) {
+  sensors::CameraCalibration left = calibrationFromProjection(
       requireProjection(projections, layout.left_index, calib), layout.left_folder);
   const cv::Size size = imageSizeOf(first_image);
   left.width = size.width;
@@ -228,14 +230,13 @@ CameraCalibration leftCalibrationOf(const std::map<int, Projection>& projections
 }
 
 /// The right camera when calib.txt has its projection matrix, posed in the left camera frame.
-std::optional<CameraCalibration> rightCalibrationOf(const std::map<int, Projection>& projections,
-                                                    const CameraLayout& layout,
-                                                    const CameraCalibration& left,
-                                                    const fs::path& calib) {
+std::optional<sensors::CameraCalibration> rightCalibrationOf(
+    const std::map<int, Projection>& projections, const CameraLayout& layout,
+    const sensors::CameraCalibration& left, const fs::path& calib) {
   if (!projections.contains(layout.right_index)) return std::nullopt;
   const Projection& P_left = projections.at(layout.left_index);
   const Projection& P_right = requireProjection(projections, layout.right_index, calib);
-  CameraCalibration right = calibrationFromProjection(P_right, layout.right_folder);
+  sensors::CameraCalibration right = calibrationFromProjection(P_right, layout.right_folder);
   right.width = left.width;
   right.height = left.height;
   right.rate_hz = left.rate_hz;

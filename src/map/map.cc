@@ -249,40 +249,40 @@ void Map::relinkSuccessor(const KeyFrame& erased) {
   }
 }
 
-std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
-                                           const std::vector<io::ImuSample>& later) {
-  std::vector<io::ImuSample> merged = earlier;
-  for (const io::ImuSample& sample : later) {
+std::vector<sensors::ImuSample> mergeImuSamples(const std::vector<sensors::ImuSample>& earlier,
+                                                const std::vector<sensors::ImuSample>& later) {
+  std::vector<sensors::ImuSample> merged = earlier;
+  for (const sensors::ImuSample& sample : later) {
     if (merged.empty() || sample.t_ns > merged.back().t_ns) merged.push_back(sample);
   }
   return merged;
 }
 
-std::vector<io::ImuSample> thinImuSamples(std::vector<io::ImuSample> samples,
-                                          std::size_t max_samples) {
+std::vector<sensors::ImuSample> thinImuSamples(std::vector<sensors::ImuSample> samples,
+                                               std::size_t max_samples) {
   if (max_samples < 3) throw OptionError("max_samples", "must be >= 3");
   if (samples.size() <= max_samples) return samples;
   const TimeNs t_first = samples.front().t_ns;
   const double span = static_cast<double>(samples.back().t_ns - t_first);
   const std::size_t bins = max_samples - 2;
-  std::vector<io::ImuSample> thinned{samples.front()};
+  std::vector<sensors::ImuSample> thinned{samples.front()};
   thinned.reserve(max_samples);
   // Sums of the interior samples of the current bin.
   std::size_t bin = 0;
   std::size_t count = 0;
   double t_sum = 0.0;
-  io::ImuSample sum;
+  sensors::ImuSample sum;
   const auto flush = [&] {
     if (count == 0) return;
     const double n = static_cast<double>(count);
-    io::ImuSample mean;
+    sensors::ImuSample mean;
     mean.t_ns = t_first + static_cast<TimeNs>(std::llround(t_sum / n));
     mean.gyro = sum.gyro / n;
     mean.accel = sum.accel / n;
     thinned.push_back(mean);
     count = 0;
     t_sum = 0.0;
-    sum = io::ImuSample{};
+    sum = sensors::ImuSample{};
   };
   for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
     const double offset = static_cast<double>(samples[k].t_ns - t_first);

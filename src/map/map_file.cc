@@ -126,12 +126,12 @@ void load(Archive& ar, cv::Mat& m) {
 }
 
 template <class Archive>
-void serialize(Archive& ar, superdyna::io::ImuSample& s) {
+void serialize(Archive& ar, superdyna::sensors::ImuSample& s) {
   ar(s.t_ns, s.gyro, s.accel);
 }
 
 template <class Archive>
-void serialize(Archive& ar, superdyna::io::CameraCalibration& c) {
+void serialize(Archive& ar, superdyna::sensors::CameraCalibration& c) {
   ar(c.name, c.T_b_c, c.width, c.height, c.rate_hz, c.model, c.fx, c.fy, c.cx, c.cy,
      c.distortion_model, c.distortion);
 }
@@ -271,7 +271,7 @@ std::vector<std::tuple<KeyFrameId, KeyFrameId, int>> covisibilityOf(const Map& m
   return edges;
 }
 
-std::string describeCamera(const io::CameraCalibration& c) {
+std::string describeCamera(const sensors::CameraCalibration& c) {
   return fmt::format("{}x{} fx {} fy {} cx {} cy {}", c.width, c.height, c.fx, c.fy, c.cx, c.cy);
 }
 
@@ -284,7 +284,7 @@ bool samePose(const SE3d& a, const SE3d& b) {
   return d.t.norm() <= 1e-6 && rotationAngle(d.rotation()) <= 1e-6;
 }
 
-bool sameCamera(const io::CameraCalibration& a, const io::CameraCalibration& b) {
+bool sameCamera(const sensors::CameraCalibration& a, const sensors::CameraCalibration& b) {
   if (a.width != b.width || a.height != b.height || a.distortion_model != b.distortion_model ||
       a.distortion.size() != b.distortion.size())
     return false;

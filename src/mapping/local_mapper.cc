@@ -58,7 +58,7 @@ const optim::ReprojectionCamera& leftCamera(const std::vector<optim::Reprojectio
 
 LocalMapper::LocalMapper(const LocalMapperOptions& options,
                          std::vector<optim::ReprojectionCamera> cameras,
-                         const std::optional<io::ImuCalibration>& imu)
+                         const std::optional<sensors::ImuCalibration>& imu)
     : options_(options),
       cameras_(std::move(cameras)),
       imu_(imu),

@@ -73,9 +73,9 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-map::MapIdentity rigIdentity(const SystemOptions& options, const io::CameraCalibration& cam0,
-                             const std::optional<io::CameraCalibration>& cam1,
-                             const std::optional<io::ImuCalibration>& imu) {
+map::MapIdentity rigIdentity(const SystemOptions& options, const sensors::CameraCalibration& cam0,
+                             const std::optional<sensors::CameraCalibration>& cam1,
+                             const std::optional<sensors::ImuCalibration>& imu) {
   map::MapIdentity identity;
   identity.feature_type = features::toString(options.front_end.features.type);
   identity.sensor_mode = toString(options.mode);
@@ -111,9 +111,9 @@ SystemOptions checkedOptions(SystemOptions options) {
 
 }  // namespace
 
-System::System(const SystemOptions& options, const io::CameraCalibration& cam0,
-               const std::optional<io::CameraCalibration>& cam1,
-               const std::optional<io::ImuCalibration>& imu,
+System::System(const SystemOptions& options, const sensors::CameraCalibration& cam0,
+               const std::optional<sensors::CameraCalibration>& cam1,
+               const std::optional<sensors::ImuCalibration>& imu,
                std::unique_ptr<semantics::Segmenter> segmenter)
     : options_(checkedOptions(options)),
       front_end_(options_.front_end, cam0, isMonocular(options_.mode) ? std::nullopt : cam1),
@@ -229,7 +229,7 @@ LoopSummary System::loopSummary() const {
   return loop_ ? loop_->summary() : LoopSummary{};
 }
 
-sensors::InstanceMasks System::segment(const io::FrameBundle& bundle) {
+sensors::InstanceMasks System::segment(const sensors::FrameBundle& bundle) {
   const auto start = Clock::now();
   const semantics::Segmentation left = segmenter_->segment(bundle.image0, bundle.t_ns, 0);
   std::optional<semantics::Segmentation> right;
@@ -250,7 +250,7 @@ sensors::InstanceMasks System::propagate(const features::FeatureSet& left) {
   return masks;
 }
 
-tracking::Frame System::buildSegmentedFrame(const io::FrameBundle& bundle,
+tracking::Frame System::buildSegmentedFrame(const sensors::FrameBundle& bundle,
                                             std::optional<sensors::InstanceMasks>& masks) {
   const auto every = static_cast<std::size_t>(options_.semantics.every_n_frames);
   const std::size_t built = segmented_frames_ + propagated_frames_;
@@ -281,9 +281,9 @@ tracking::Frame System::buildSegmentedFrame(const io::FrameBundle& bundle,
   return frame;
 }
 
-tracking::Frame System::buildFrame(const io::FrameBundle& bundle) {
+tracking::Frame System::buildFrame(const sensors::FrameBundle& bundle) {
   if (!segmenter_ && !front_end_callback_) return front_end_.build(bundle);
-  io::FrameBundle labelled = bundle;
+  sensors::FrameBundle labelled = bundle;
   // Masks the reader gave (bundle.masks) take precedence over the segmenter.
   tracking::Frame frame = segmenter_ && !bundle.masks ? buildSegmentedFrame(bundle, labelled.masks)
                                                       : front_end_.build(bundle);
@@ -300,7 +300,7 @@ void System::collectFrontEndTimes() {
   timings_.busy.segmentation_ms = segment_thread_ ? segment_thread_->cpuMs() : 0.0;
 }
 
-tracking::TrackingResult System::process(const io::FrameBundle& bundle) {
+tracking::TrackingResult System::process(const sensors::FrameBundle& bundle) {
   const auto start = Clock::now();
   const double cpu_start = threadCpuMs();
   const tracking::Frame frame = buildFrame(bundle);
@@ -354,7 +354,7 @@ void System::runSequentially(io::DatasetSource& source, const FrameCallback& on_
   while (true) {
     const auto start = Clock::now();
     const double cpu_start = threadCpuMs();
-    const std::optional<io::FrameBundle> bundle = source.next();
+    const std::optional<sensors::FrameBundle> bundle = source.next();
     timings_.busy.front_end_ms += threadCpuMs() - cpu_start;
     timings_.wall_s += secondsSince(start);
     if (!bundle) break;
@@ -372,7 +372,7 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
     const double cpu_start = threadCpuMs();
     try {
       while (true) {
-        const std::optional<io::FrameBundle> bundle = source.next();
+        const std::optional<sensors::FrameBundle> bundle = source.next();
         if (!bundle) break;
         if (!frames.push(buildFrame(*bundle))) break;  // tracking stopped early
       }

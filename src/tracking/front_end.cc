@@ -98,8 +98,8 @@ void labelKeypoints(const cv::Mat& instance_mask, const sensors::InstanceMasks& 
   }
 }
 
-FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& cam0,
-                   const std::optional<io::CameraCalibration>& cam1)
+FrontEnd::FrontEnd(const FrontEndOptions& options, const sensors::CameraCalibration& cam0,
+                   const std::optional<sensors::CameraCalibration>& cam1)
     : camera0_(cam0.cameraModel()), pyramid_(features::pyramidOf(options.features)) {
   options.validate();
   left_extractor_ = features::makeExtractor(options.features);
@@ -113,11 +113,11 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& 
   }
 }
 
-Frame FrontEnd::build(const io::FrameBundle& bundle) {
+Frame FrontEnd::build(const sensors::FrameBundle& bundle) {
   return build(bundle, {});
 }
 
-Frame FrontEnd::build(const io::FrameBundle& bundle, const MasksOfFeatures& masks_of) {
+Frame FrontEnd::build(const sensors::FrameBundle& bundle, const MasksOfFeatures& masks_of) {
   Frame frame;
   frame.index = bundle.index;
   frame.t_ns = bundle.t_ns;
@@ -148,7 +148,7 @@ Frame FrontEnd::build(const io::FrameBundle& bundle, const MasksOfFeatures& mask
   return frame;
 }
 
-void FrontEnd::extract(const io::FrameBundle& bundle, bool stereo, Frame& frame,
+void FrontEnd::extract(const sensors::FrameBundle& bundle, bool stereo, Frame& frame,
                        features::FeatureSet& right) {
   if (!stereo) {
     frame.features = left_extractor_->extract(bundle.image0);
@@ -173,7 +173,7 @@ void FrontEnd::extract(const io::FrameBundle& bundle, bool stereo, Frame& frame,
   helper_->wait();
 }
 
-void FrontEnd::matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
+void FrontEnd::matchStereo(const features::FeatureSet& right, const sensors::FrameBundle& bundle,
                            const std::optional<sensors::InstanceMasks>& masks, Frame& frame) const {
   // Right keypoints are labelled only when the right image has a mask of its own.
   const bool right_labelled = !masks || !masks->cam1.empty();

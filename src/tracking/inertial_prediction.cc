@@ -41,13 +41,14 @@ void InertialPriorOptions::validate() const {
   }
 }
 
-void ImuSampleBuffer::append(const std::vector<io::ImuSample>& samples) {
-  for (const io::ImuSample& sample : samples) {
+void ImuSampleBuffer::append(const std::vector<sensors::ImuSample>& samples) {
+  for (const sensors::ImuSample& sample : samples) {
     if (samples_.empty() || sample.t_ns > samples_.back().t_ns) samples_.push_back(sample);
   }
 }
 
-std::optional<ImuGap> findImuGap(const std::vector<io::ImuSample>& samples, TimeNs max_gap_ns) {
+std::optional<ImuGap> findImuGap(const std::vector<sensors::ImuSample>& samples,
+                                 TimeNs max_gap_ns) {
   std::optional<ImuGap> gap;
   for (std::size_t k = 1; k < samples.size(); ++k) {
     if (samples[k].t_ns - samples[k - 1].t_ns > max_gap_ns) {
@@ -57,15 +58,15 @@ std::optional<ImuGap> findImuGap(const std::vector<io::ImuSample>& samples, Time
   return gap;
 }
 
-void ImuSampleBuffer::restartAt(const std::vector<io::ImuSample>& samples, TimeNs t_ns) {
+void ImuSampleBuffer::restartAt(const std::vector<sensors::ImuSample>& samples, TimeNs t_ns) {
   samples_.clear();
-  for (const io::ImuSample& sample : samples) {
+  for (const sensors::ImuSample& sample : samples) {
     if (sample.t_ns >= t_ns) samples_.push_back(sample);
   }
 }
 
-std::vector<io::ImuSample> ImuSampleBuffer::startInterval(TimeNs t_ns) {
-  std::vector<io::ImuSample> interval = samples_;
+std::vector<sensors::ImuSample> ImuSampleBuffer::startInterval(TimeNs t_ns) {
+  std::vector<sensors::ImuSample> interval = samples_;
   std::size_t first = 0;  // the last sample at or before t_ns
   for (std::size_t k = 0; k < samples_.size(); ++k) {
     if (samples_[k].t_ns <= t_ns) first = k;
@@ -74,11 +75,9 @@ std::vector<io::ImuSample> ImuSampleBuffer::startInterval(TimeNs t_ns) {
   return interval;
 }
 
-std::optional<InertialPrediction> predictFromKeyFrame(const map::KeyFrame& keyframe,
-                                                      const std::vector<io::ImuSample>& samples,
-                                                      TimeNs t_ns, const SE3d& T_b_i,
-                                                      const imu::ImuNoise& noise,
-                                                      const InertialPriorOptions& options) {
+std::optional<InertialPrediction> predictFromKeyFrame(
+    const map::KeyFrame& keyframe, const std::vector<sensors::ImuSample>& samples, TimeNs t_ns,
+    const SE3d& T_b_i, const imu::ImuNoise& noise, const InertialPriorOptions& options) {
   if (samples.size() < 2 || !(t_ns > keyframe.t_ns) || samples.front().t_ns > keyframe.t_ns ||
       samples.back().t_ns < t_ns) {
     return std::nullopt;

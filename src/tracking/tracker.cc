@@ -93,7 +93,7 @@ const char* toString(TrackingState state) {
 namespace {
 
 std::vector<optim::ReprojectionCamera> rigCameras(
-    const io::CameraCalibration& cam0, const std::optional<io::CameraCalibration>& cam1) {
+    const sensors::CameraCalibration& cam0, const std::optional<sensors::CameraCalibration>& cam1) {
   std::vector<optim::ReprojectionCamera> cameras{
       optim::ReprojectionCamera::from(cam0.cameraModel(), cam0.T_b_c)};
   if (cam1) cameras.push_back(optim::ReprojectionCamera::from(cam1->cameraModel(), cam1->T_b_c));
@@ -103,9 +103,9 @@ std::vector<optim::ReprojectionCamera> rigCameras(
 }  // namespace
 
 Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
-                 const mapping::LocalMapperOptions& mapping, const io::CameraCalibration& cam0,
-                 const std::optional<io::CameraCalibration>& cam1,
-                 const std::optional<io::ImuCalibration>& imu)
+                 const mapping::LocalMapperOptions& mapping, const sensors::CameraCalibration& cam0,
+                 const std::optional<sensors::CameraCalibration>& cam1,
+                 const std::optional<sensors::ImuCalibration>& imu)
     : options_(options),
       pyramid_(pyramid),
       camera0_(cam0.cameraModel()),
@@ -193,7 +193,7 @@ SE3d Tracker::initialPose(const Frame& frame, const SE3d& predicted) const {
 SE3d Tracker::gravityAlignedPose(const Frame& frame) const {
   if (!imu_ || frame.imu.empty()) return SE3d();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
-  for (const io::ImuSample& s : frame.imu)
+  for (const sensors::ImuSample& s : frame.imu)
     accel += s.accel;
   const Eigen::Vector3d up_b = imu_->T_b_i.rotation() * accel;
   if (!(up_b.norm() > 1e-6)) return SE3d();
@@ -821,7 +821,7 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, SE3d& T_w_b,
     kf.v_w = v_w.value_or(velocity_w_);
     kf.bg = bias_.bg;
     kf.ba = bias_.ba;
-    std::vector<io::ImuSample> samples = imu_since_keyframe_.startInterval(frame.t_ns);
+    std::vector<sensors::ImuSample> samples = imu_since_keyframe_.startInterval(frame.t_ns);
     if (map_->numKeyFrames() > 0) kf.imu_from_previous = std::move(samples);
   }
   kf.descriptors = frame.features.descriptors.clone();

@@ -18,7 +18,7 @@ void Tracker::initializeMono(const Frame& frame, TrackingResult& result) {
 std::optional<Eigen::Matrix3d> Tracker::gyroRotationSinceReference(const Frame& frame) const {
   if (!imu_ || !mono_initializer_->hasReference()) return std::nullopt;
   const TimeNs t0_ns = mono_initializer_->referenceTime();
-  const std::vector<io::ImuSample>& samples = imu_since_keyframe_.samples();
+  const std::vector<sensors::ImuSample>& samples = imu_since_keyframe_.samples();
   if (samples.size() < 2 || samples.front().t_ns > t0_ns || samples.back().t_ns < frame.t_ns ||
       frame.t_ns <= t0_ns) {
     return std::nullopt;  // the samples do not span the two views

@@ -144,8 +144,8 @@ TEST(FloatMatching, ProjectionMatchesWithoutAnglesAndRespectsClasses) {
 }
 
 /// A pinhole stereo rig: cam1 12 cm to the right of cam0.
-std::pair<io::CameraCalibration, io::CameraCalibration> pinholeRig() {
-  io::CameraCalibration cam0;
+std::pair<sensors::CameraCalibration, sensors::CameraCalibration> pinholeRig() {
+  sensors::CameraCalibration cam0;
   cam0.name = "cam0";
   cam0.width = 640;
   cam0.height = 480;
@@ -153,7 +153,7 @@ std::pair<io::CameraCalibration, io::CameraCalibration> pinholeRig() {
   cam0.fx = cam0.fy = 450.0;
   cam0.cx = 320.0;
   cam0.cy = 240.0;
-  io::CameraCalibration cam1 = cam0;
+  sensors::CameraCalibration cam1 = cam0;
   cam1.name = "cam1";
   cam1.T_b_c = cam0.T_b_c * SE3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.12, 0, 0));
   return {cam0, cam1};

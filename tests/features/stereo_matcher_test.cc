@@ -38,8 +38,8 @@ double fraction(std::size_t part, std::size_t whole) {
 }
 
 /// An ideal EuRoC-like pair: cam1 11 cm to the right of cam0, slightly rotated, radtan lens.
-std::pair<io::CameraCalibration, io::CameraCalibration> idealRig() {
-  io::CameraCalibration cam0;
+std::pair<sensors::CameraCalibration, sensors::CameraCalibration> idealRig() {
+  sensors::CameraCalibration cam0;
   cam0.name = "cam0";
   cam0.width = 752;
   cam0.height = 480;
@@ -50,7 +50,7 @@ std::pair<io::CameraCalibration, io::CameraCalibration> idealRig() {
   cam0.cy = 248.0;
   cam0.distortion_model = DistortionModel::kRadialTangential;
   cam0.distortion = {-0.28, 0.07, 0.0002, 0.00002};
-  io::CameraCalibration cam1 = cam0;
+  sensors::CameraCalibration cam1 = cam0;
   cam1.name = "cam1";
   cam1.cx = 380.0;
   const SE3d T_c0_c1(expSO3(Eigen::Vector3d(0.002, -0.01, 0.003)),
@@ -234,8 +234,8 @@ TEST(StereoMatcherEurocTest, MatchesFollowTheCalibratedEpipolarGeometry) {
   SUPERDYNA_REQUIRE_SHARED(root, "data/euroc/V1_01_easy_micro");
   const io::EurocDataset dataset = io::EurocDataset::open(root);
   ASSERT_TRUE(dataset.isStereo());
-  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset.cam1Calibration();
   OrbExtractor extractor;
   const StereoMatcher matcher(cam0, cam1);
   StereoStats total;
@@ -289,8 +289,8 @@ TEST(StereoMatcherEurocTest, MatchesFollowTheCalibratedEpipolarGeometry) {
 TEST(StereoMatcherEurocTest, RectifiedPathAgreesWithTheUnrectifiedOne) {
   SUPERDYNA_REQUIRE_SHARED(root, "data/euroc/V1_01_easy_micro");
   const io::EurocDataset dataset = io::EurocDataset::open(root);
-  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset.cam1Calibration();
   const StereoMatcher matcher(cam0, cam1);
   // Rectify with OpenCV (p_c1 = R p_c0 + T).
   cv::Mat R, T, R0, R1, P0, P1, Q;
@@ -480,8 +480,8 @@ TEST_F(SyntheticStereoTest, ReRenderedGroundTruthIsTheGeneratedFrame) {
 }
 
 TEST_F(SyntheticStereoTest, TriangulatedPointsLieOnTheRenderedSurfaces) {
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   OrbExtractor extractor;
   const FeatureSet left = extractor.extract(io::loadImage(frame_.cam0, cam0));
   const FeatureSet right = extractor.extract(io::loadImage(frame_.cam1, cam1));
@@ -517,8 +517,8 @@ TEST_F(SyntheticStereoTest, TriangulatedPointsLieOnTheRenderedSurfaces) {
 
 TEST_F(SyntheticStereoTest, RectifiedPathGivesSubPixelDisparities) {
   // The simulated rig is rectified: same intrinsics, no distortion, cam1 shifted along x.
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   const cv::Mat left_image = io::loadImage(frame_.cam0, cam0);
   const cv::Mat right_image = io::loadImage(frame_.cam1, cam1);
   OrbExtractor extractor;
@@ -559,8 +559,8 @@ TEST_F(SyntheticStereoTest, FarDisparitiesAreNotBiasedLarge) {
   // Signed disparity error (estimate - truth) of the inliers (within two level-scaled pixels),
   // by rendered depth: far points came out too near when the depth came from the midpoint of
   // the raw skew rays (mean +0.13 px at 12-25 m, +0.23 px at 25-70 m).
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   OrbExtractor extractor;
   const FeatureSet left = extractor.extract(io::loadImage(frame_.cam0, cam0));
   const FeatureSet right = extractor.extract(io::loadImage(frame_.cam1, cam1));
@@ -588,8 +588,8 @@ TEST_F(SyntheticStereoTest, ImageRefinementRemovesTheCoarseOctaveDisparityBias) 
   // at coarse octaves kept only the disparities that did not round to zero or below, on average
   // +0.39 / +0.94 px at octaves 6 / 7 without refinement. The SAD refinement along the epipolar
   // curve measures them to a fraction of a pixel.
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   const cv::Mat left_image = io::loadImage(frame_.cam0, cam0);
   const cv::Mat right_image = io::loadImage(frame_.cam1, cam1);
   OrbExtractor extractor;
@@ -630,8 +630,8 @@ TEST_F(SyntheticStereoTest, ImageRefinementRemovesTheCoarseOctaveDisparityBias) 
 // The SAD search spans ceil(1.2^octave) + 1 px either side of the descriptor match; a minimum
 // beyond stereo.refine_max_shift of it keeps the match where the keypoints put it.
 TEST_F(SyntheticStereoTest, ImageRefinementMovesMatchesAtMostItsMaximumShift) {
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   const cv::Mat left_image = io::loadImage(frame_.cam0, cam0);
   const cv::Mat right_image = io::loadImage(frame_.cam1, cam1);
   OrbExtractor extractor;
@@ -666,8 +666,8 @@ TEST_F(SyntheticStereoTest, ImageRefinementMovesMatchesAtMostItsMaximumShift) {
 }
 
 TEST_F(SyntheticStereoTest, ImageRefinementChecksItsInputs) {
-  const io::CameraCalibration& cam0 = dataset_->cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset_->cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset_->cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset_->cam1Calibration();
   const cv::Mat image = io::loadImage(frame_.cam0, cam0);
   OrbExtractor extractor;
   const FeatureSet features = extractor.extract(image);
@@ -688,8 +688,8 @@ std::vector<std::vector<double>> disparityErrorsByDepth(const sim::SimulationOpt
                                                         std::size_t step,
                                                         const std::vector<double>& edges_m) {
   const io::EurocDataset dataset = io::EurocDataset::open(options.output_dir);
-  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset.cam1Calibration();
   const double focal_baseline = cam0.fx * options.rig.baseline_m;
   const RenderedTruth truth(options);
   const StereoMatcher matcher(cam0, cam1);

@@ -360,8 +360,8 @@ TEST(SuperPointExtractorTest, ComposedModelOnEurocStereoAndTiming) {
   SuperPointExtractor extractor(options);
 
   const io::EurocDataset dataset = io::EurocDataset::open(root);
-  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset.cam1Calibration();
   const StereoMatcher geometry(cam0, cam1);
   std::size_t frames = 0, keypoints = 0, matches = 0, inliers = 0;
   double total_ms = 0.0, network_ms = 0.0, min_ms = 1e9;

@@ -207,8 +207,8 @@ TEST(XFeatExtractorTest, StereoMatchesFollowTheCalibratedEpipolarGeometry) {
   useSharedModels();
   const io::EurocDataset dataset = io::EurocDataset::open(root);
   ASSERT_TRUE(dataset.isStereo());
-  const io::CameraCalibration& cam0 = dataset.cam0Calibration();
-  const io::CameraCalibration& cam1 = *dataset.cam1Calibration();
+  const sensors::CameraCalibration& cam0 = dataset.cam0Calibration();
+  const sensors::CameraCalibration& cam1 = *dataset.cam1Calibration();
   // Only its geometry is used: unprojection by each calibrated CameraModel and the epipolar
   // distance of the two bearings.
   const StereoMatcher geometry(cam0, cam1);

@@ -32,8 +32,8 @@ inline sim::Se3Spline livelyMotion(double duration_s) {
 }
 
 /// The simulator's measurements as io samples.
-inline std::vector<io::ImuSample> toImuSamples(const std::vector<sim::ImuMeasurement>& in) {
-  std::vector<io::ImuSample> out;
+inline std::vector<sensors::ImuSample> toImuSamples(const std::vector<sim::ImuMeasurement>& in) {
+  std::vector<sensors::ImuSample> out;
   out.reserve(in.size());
   for (const sim::ImuMeasurement& m : in)
     out.push_back({m.t_ns, m.gyro, m.accel});

@@ -34,7 +34,7 @@ Scenario makeScenario(const sim::ImuNoiseOptions& imu_options, double scale,
   const sim::ImuSequence imu =
       sim::ImuSimulator(imu_options)
           .simulate(motion, {kMotionStartNs, kMotionStartNs + secondsToNs(3.5)});
-  const std::vector<io::ImuSample> samples = test::toImuSamples(imu.measurements);
+  const std::vector<sensors::ImuSample> samples = test::toImuSamples(imu.measurements);
 
   const Eigen::Matrix3d R_v_w = expSO3(Eigen::Vector3d(0.4, -0.7, 1.2));
   const Eigen::Vector3d t_v_w(2.0, -1.0, 0.5);

@@ -27,14 +27,15 @@ Bias initialBias(const sim::ImuNoiseOptions& options) {
 }
 
 /// Samples of the exact IMU over [begin, end] of the motion.
-std::vector<io::ImuSample> simulate(const sim::Se3Spline& motion, const sim::ImuNoiseOptions& o,
-                                    TimeNs begin_ns, TimeNs end_ns) {
+std::vector<sensors::ImuSample> simulate(const sim::Se3Spline& motion,
+                                         const sim::ImuNoiseOptions& o, TimeNs begin_ns,
+                                         TimeNs end_ns) {
   return test::toImuSamples(sim::ImuSimulator(o).simulate(motion, {begin_ns, end_ns}).measurements);
 }
 
 /// World-frame strapdown integration with the same discretisation as the preintegration (mean of
 /// consecutive samples, force rotated at mid-interval), written independently of it.
-NavState strapdown(const NavState& start, const std::vector<io::ImuSample>& samples,
+NavState strapdown(const NavState& start, const std::vector<sensors::ImuSample>& samples,
                    const Bias& bias) {
   NavState x = start;
   const Eigen::Vector3d g_w = gravityVector();
@@ -55,7 +56,7 @@ double angleDeg(const Eigen::Matrix3d& R_a, const Eigen::Matrix3d& R_b) {
 }
 
 TEST(ImuNoiseTest, FromCalibrationAndValidate) {
-  io::ImuCalibration calibration;
+  sensors::ImuCalibration calibration;
   calibration.gyroscope_noise_density = 1e-4;
   calibration.gyroscope_random_walk = 2e-5;
   calibration.accelerometer_noise_density = 3e-3;
@@ -84,10 +85,10 @@ TEST(PreintegrationTest, EmptyAndInvalidSteps) {
   EXPECT_THROW(pre.integrate(Eigen::Vector3d::Constant(NAN), Eigen::Vector3d::Zero(), 0.01),
                OptionError);
   const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
-  const std::vector<io::ImuSample> samples = {{0, zero, zero}, {10, zero, zero}};
+  const std::vector<sensors::ImuSample> samples = {{0, zero, zero}, {10, zero, zero}};
   EXPECT_THROW(pre.integrateBetween(samples, 5, 5), OptionError);
   EXPECT_THROW(pre.integrateBetween({}, 0, 5), OptionError);
-  const std::vector<io::ImuSample> unordered = {{10, zero, zero}, {0, zero, zero}};
+  const std::vector<sensors::ImuSample> unordered = {{10, zero, zero}, {0, zero, zero}};
   EXPECT_THROW(pre.integrateBetween(unordered, 0, 5), OptionError);
   EXPECT_TRUE(pre.steps().empty());
 }
@@ -98,7 +99,7 @@ TEST(PreintegrationTest, EqualsDirectIntegrationOfExactImu) {
   const sim::ImuNoiseOptions options = exactImu();
   const TimeNs t_i = kMotionStartNs + 300'000'000;  // +0.3 s
   const TimeNs t_j = t_i + 100 * kSampleNs;         // 0.5 s later
-  const std::vector<io::ImuSample> samples = simulate(motion, options, t_i, t_j);
+  const std::vector<sensors::ImuSample> samples = simulate(motion, options, t_i, t_j);
   ASSERT_EQ(samples.size(), 101u);
 
   const Bias bias = initialBias(options);
@@ -136,7 +137,7 @@ TEST(PreintegrationTest, PredictMatchesSplineGroundTruth) {
     // Frame times between IMU samples: the ends are interpolated.
     const TimeNs t_i = kMotionStartNs + start_ms * 1'000'000 + 2'300'000;
     const TimeNs t_j = t_i + 500'000'000;
-    const std::vector<io::ImuSample> samples =
+    const std::vector<sensors::ImuSample> samples =
         simulate(motion, options, kMotionStartNs + start_ms * 1'000'000, t_j + kSampleNs);
     Preintegration pre(initialBias(options), test::noiseOf(options));
     pre.integrateBetween(samples, t_i, t_j);
@@ -159,7 +160,8 @@ TEST(PreintegrationTest, ComposesAtSampleTimeAndHoldsOutsideSamples) {
   const sim::Se3Spline motion = test::livelyMotion(2.0);
   const sim::ImuNoiseOptions options = exactImu();
   const TimeNs t_0 = kMotionStartNs + 200'000'000;
-  const std::vector<io::ImuSample> samples = simulate(motion, options, t_0, t_0 + 80 * kSampleNs);
+  const std::vector<sensors::ImuSample> samples =
+      simulate(motion, options, t_0, t_0 + 80 * kSampleNs);
   const TimeNs t_i = t_0 + 1'000'000, t_m = t_0 + 40 * kSampleNs, t_j = t_0 + 77 * kSampleNs + 7;
   const Bias bias = initialBias(options);
   Preintegration whole(bias, ImuNoise{}), first(bias, ImuNoise{}), second(bias, ImuNoise{});
@@ -177,7 +179,7 @@ TEST(PreintegrationTest, ComposesAtSampleTimeAndHoldsOutsideSamples) {
   EXPECT_LT((dP - whole.deltaPosition()).norm(), 1e-13);
 
   // Outside the samples the nearest one is held: one sample at 0 means a constant signal.
-  const std::vector<io::ImuSample> one = {
+  const std::vector<sensors::ImuSample> one = {
       {0, Eigen::Vector3d(0.0, 0.0, 0.5), Eigen::Vector3d::Zero()}};
   Preintegration held(Bias{}, ImuNoise{});
   held.integrateBetween(one, -100'000'000, 300'000'000);
@@ -190,7 +192,8 @@ TEST(PreintegrationTest, BiasJacobiansMatchFiniteDifferences) {
   const sim::Se3Spline motion = test::livelyMotion(2.0);
   sim::ImuNoiseOptions options;  // noise on: arbitrary realistic measurements
   const TimeNs t_i = kMotionStartNs + 100'000'000;
-  const std::vector<io::ImuSample> samples = simulate(motion, options, t_i, t_i + 140 * kSampleNs);
+  const std::vector<sensors::ImuSample> samples =
+      simulate(motion, options, t_i, t_i + 140 * kSampleNs);
   const Bias bias0{Eigen::Vector3d(0.01, -0.02, 0.05), Eigen::Vector3d(0.1, -0.05, 0.2)};
   Preintegration pre(bias0, test::noiseOf(options));
   pre.integrateBetween(samples, t_i + 1'234'567, t_i + 130 * kSampleNs + 3'000'000);
@@ -275,7 +278,8 @@ TEST(PreintegrationTest, ReintegratesOnlyWhenTheBiasMovedFar) {
   const sim::Se3Spline motion = test::livelyMotion(2.0);
   const sim::ImuNoiseOptions options = exactImu();
   const TimeNs t_i = kMotionStartNs + 100'000'000;
-  const std::vector<io::ImuSample> samples = simulate(motion, options, t_i, t_i + 60 * kSampleNs);
+  const std::vector<sensors::ImuSample> samples =
+      simulate(motion, options, t_i, t_i + 60 * kSampleNs);
   Preintegration pre(Bias{}, ImuNoise{});
   pre.integrateBetween(samples, t_i, t_i + 60 * kSampleNs);
   const Eigen::Vector3d dV_before = pre.deltaVelocity();

@@ -48,12 +48,12 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 
 TEST(CalibrationTest, ReadsEurocCam0AsInTheYaml) {
   SUPERDYNA_REQUIRE_SHARED(file, kCam0Yaml);
-  const CameraCalibration c = readCameraCalibration(file);
+  const sensors::CameraCalibration c = readCameraCalibration(file);
   EXPECT_EQ(c.name, "cam0");
   EXPECT_EQ(c.width, 752);
   EXPECT_EQ(c.height, 480);
   EXPECT_DOUBLE_EQ(c.rate_hz, 20.0);
-  EXPECT_EQ(c.model, ProjectionModel::kPinhole);
+  EXPECT_EQ(c.model, sensors::ProjectionModel::kPinhole);
   EXPECT_DOUBLE_EQ(c.fx, 458.654);
   EXPECT_DOUBLE_EQ(c.fy, 457.296);
   EXPECT_DOUBLE_EQ(c.cx, 367.215);
@@ -88,7 +88,7 @@ TEST(CalibrationTest, ReadsEurocCam0AsInTheYaml) {
 
 TEST(CalibrationTest, ReadsEurocCam1AndImu) {
   SUPERDYNA_REQUIRE_SHARED(cam1_file, kCam1Yaml);
-  const CameraCalibration cam1 = readCameraCalibration(cam1_file);
+  const sensors::CameraCalibration cam1 = readCameraCalibration(cam1_file);
   EXPECT_EQ(cam1.name, "cam1");
   EXPECT_DOUBLE_EQ(cam1.fx, 457.587);
   EXPECT_DOUBLE_EQ(cam1.fy, 456.134);
@@ -99,12 +99,12 @@ TEST(CalibrationTest, ReadsEurocCam1AndImu) {
   EXPECT_DOUBLE_EQ(cam1.T_b_c.t.y(), 0.0453689425024);
 
   SUPERDYNA_REQUIRE_SHARED(cam0_file, kCam0Yaml);
-  const CameraCalibration cam0 = readCameraCalibration(cam0_file);
+  const sensors::CameraCalibration cam0 = readCameraCalibration(cam0_file);
   // The EuRoC stereo baseline is about 11 cm.
   EXPECT_NEAR((cam0.T_b_c.inverse() * cam1.T_b_c).t.norm(), 0.110, 0.001);
 
   SUPERDYNA_REQUIRE_SHARED(imu_file, kImuYaml);
-  const ImuCalibration imu = readImuCalibration(imu_file);
+  const sensors::ImuCalibration imu = readImuCalibration(imu_file);
   EXPECT_DOUBLE_EQ(imu.rate_hz, 200.0);
   EXPECT_EQ(imu.periodNs(), 5'000'000);
   EXPECT_DOUBLE_EQ(imu.gyroscope_noise_density, 1.6968e-04);
@@ -123,7 +123,7 @@ TEST(CalibrationTest, AcceptsDistortionModelAliases) {
   }
   writeFile(file, replaced(replaced(cameraYaml(), "radial-tangential", "fisheye"),
                            "[-0.28, 0.07, 0.0002, 1.7e-05]", "[0.1, 0.2, 0.3, 0.4]"));
-  const CameraCalibration fisheye = readCameraCalibration(file);
+  const sensors::CameraCalibration fisheye = readCameraCalibration(file);
   EXPECT_EQ(fisheye.distortion_model, DistortionModel::kEquidistant);
   EXPECT_DOUBLE_EQ(fisheye.distortionCoefficients().at<double>(0, 3), 0.4);
   writeFile(file, replaced(cameraYaml(), "1.7e-05]", "1.7e-05, 0.001]"));
@@ -238,7 +238,7 @@ TEST(CalibrationTest, ValidatesTransformsAndCalibrationsBuiltInCode) {
   test::expectError([&] { checkedRigidTransform(M, InputLocation{"x.yaml"}); },
                     {"x.yaml", "not orthonormal"});
 
-  CameraCalibration c;
+  sensors::CameraCalibration c;
   c.width = 640;
   c.height = 480;
   c.rate_hz = 30.0;
@@ -255,7 +255,7 @@ TEST(CalibrationTest, LoadsImagesCheckedAgainstTheCalibration) {
   SUPERDYNA_REQUIRE_SHARED(cam0_file, kCam0Yaml);
   SUPERDYNA_REQUIRE_SHARED(png,
                            "data/euroc/V1_01_easy_micro/mav0/cam0/data/1403715273262142976.png");
-  const CameraCalibration cam0 = readCameraCalibration(cam0_file);
+  const sensors::CameraCalibration cam0 = readCameraCalibration(cam0_file);
   const cv::Mat image = loadImage(png, cam0);
   EXPECT_EQ(image.type(), CV_8UC1);
   EXPECT_EQ(image.cols, 752);
@@ -268,7 +268,7 @@ TEST(CalibrationTest, LoadsImagesCheckedAgainstTheCalibration) {
   ASSERT_TRUE(cv::imwrite(small.string(), colour));
   test::expectError([&] { loadImage(small, cam0); },
                     {"small.png", "is 640x480, expected 752x480", "cam0"});
-  CameraCalibration vga = cam0;
+  sensors::CameraCalibration vga = cam0;
   vga.width = 640;
   EXPECT_EQ(loadImage(small, vga).type(), CV_8UC1);  // colour converted to grayscale
 

@@ -252,7 +252,7 @@ TEST(EurocDatasetTest, SkipsNonFiniteImuRowsAndReportsDroppedFrames) {
   editLine(dir / "mav0/cam0/data.csv", 3, "");
   const EurocDataset dataset = EurocDataset::open(dir.path());
   EXPECT_EQ(dataset.imu().size(), 97u);
-  for (const ImuSample& sample : dataset.imu()) {
+  for (const sensors::ImuSample& sample : dataset.imu()) {
     EXPECT_TRUE(sample.gyro.allFinite() && sample.accel.allFinite());
   }
   EXPECT_TRUE(anyContains(dataset.warnings(),

@@ -58,7 +58,7 @@ TEST(KittiDatasetTest, ReadsTheRealSnippet) {
   EXPECT_NE(dataset.warnings()[0].find("times.txt not found"), std::string::npos);
 
   // The snippet's calib.txt has unlabelled rows: P0 then P1.
-  const CameraCalibration& left = dataset.leftCalibration();
+  const sensors::CameraCalibration& left = dataset.leftCalibration();
   EXPECT_EQ(left.name, "image_l");
   EXPECT_DOUBLE_EQ(left.fx, 707.0912);
   EXPECT_DOUBLE_EQ(left.fy, 707.0912);

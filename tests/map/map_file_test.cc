@@ -74,7 +74,7 @@ MapIdentity orbStereoInertial() {
   identity.descriptor_type = MapDescriptorType::kBinary;
   identity.descriptor_columns = 32;
   identity.sensor_mode = "stereo-inertial";
-  io::CameraCalibration cam;
+  sensors::CameraCalibration cam;
   cam.name = "cam0";
   cam.width = 752;
   cam.height = 480;

@@ -431,24 +431,24 @@ TEST_F(ThreeKeyFrameMap, KeyFramesFormATemporalChainThatSurvivesErasing) {
 
 TEST(MapTest, MergedImuSamplesDropTheSharedBracketingSample) {
   const auto at = [](TimeNs t) {
-    io::ImuSample s;
+    sensors::ImuSample s;
     s.t_ns = t;
     s.gyro.setZero();
     s.accel.setZero();
     return s;
   };
-  const std::vector<io::ImuSample> merged =
+  const std::vector<sensors::ImuSample> merged =
       mergeImuSamples({at(0), at(5), at(10)}, {at(5), at(10), at(15)});
   ASSERT_EQ(merged.size(), 4u);
   EXPECT_EQ(merged.back().t_ns, 15);
 }
 
 /// 200 Hz samples of smooth signals over [t0_s, t1_s].
-std::vector<io::ImuSample> smoothImuRun(double t0_s, double t1_s) {
-  std::vector<io::ImuSample> samples;
+std::vector<sensors::ImuSample> smoothImuRun(double t0_s, double t1_s) {
+  std::vector<sensors::ImuSample> samples;
   for (TimeNs t = secondsToNs(t0_s); t <= secondsToNs(t1_s); t += secondsToNs(0.005)) {
     const double s = nsToSeconds(t);
-    io::ImuSample sample;
+    sensors::ImuSample sample;
     sample.t_ns = t;
     sample.gyro = Eigen::Vector3d(0.1 * std::sin(0.5 * s), 0.2, 0.05 * std::cos(0.2 * s));
     sample.accel = Eigen::Vector3d(0.01 * s, 9.81, std::cos(0.3 * s));
@@ -460,7 +460,7 @@ std::vector<io::ImuSample> smoothImuRun(double t0_s, double t1_s) {
 /// Integrals of both signals over the samples' span, linear between samples (the way
 /// preintegration interpolates them).
 std::pair<Eigen::Vector3d, Eigen::Vector3d> trapezoidIntegrals(
-    const std::vector<io::ImuSample>& samples) {
+    const std::vector<sensors::ImuSample>& samples) {
   Eigen::Vector3d gyro = Eigen::Vector3d::Zero();
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();
   for (std::size_t k = 1; k < samples.size(); ++k) {
@@ -472,8 +472,8 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> trapezoidIntegrals(
 }
 
 TEST(MapTest, ThinnedImuSamplesKeepTheEndsAndTheIntegrals) {
-  const std::vector<io::ImuSample> full = smoothImuRun(0.0, 60.0);  // 12 001 samples
-  const std::vector<io::ImuSample> thinned = thinImuSamples(full, 256);
+  const std::vector<sensors::ImuSample> full = smoothImuRun(0.0, 60.0);  // 12 001 samples
+  const std::vector<sensors::ImuSample> thinned = thinImuSamples(full, 256);
   ASSERT_EQ(thinned.size(), 256u);
   EXPECT_EQ(thinned.front().t_ns, full.front().t_ns);
   EXPECT_EQ(thinned.back().t_ns, full.back().t_ns);
@@ -519,9 +519,9 @@ TEST(MapTest, ErasedKeyFramesLeaveTheirSuccessorsAtMostTheLinkSampleLimit) {
 /// after an IMU gap from 1.0 to 1.6 s, so it starts at 1.6 s (after its predecessor).
 TEST(MapTest, ErasingTheKeyFrameBeforeAnImuGapLeavesTheSuccessorUnlinked) {
   const auto run = [](double t0_s, double t1_s) {
-    std::vector<io::ImuSample> samples;
+    std::vector<sensors::ImuSample> samples;
     for (TimeNs t = secondsToNs(t0_s); t <= secondsToNs(t1_s); t += secondsToNs(0.01)) {
-      io::ImuSample s;
+      sensors::ImuSample s;
       s.t_ns = t;
       samples.push_back(s);
     }

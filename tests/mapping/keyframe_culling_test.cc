@@ -14,8 +14,8 @@ constexpr TimeNs kStartNs = 1'000'000'000'000;
 constexpr TimeNs kImuPeriodNs = 5'000'000;  // 200 Hz
 
 /// A varying IMU signal at 200 Hz over [kStartNs - 10 ms, end_ns + 10 ms].
-std::vector<io::ImuSample> imuSignal(TimeNs end_ns) {
-  std::vector<io::ImuSample> samples;
+std::vector<sensors::ImuSample> imuSignal(TimeNs end_ns) {
+  std::vector<sensors::ImuSample> samples;
   for (TimeNs t = kStartNs - 2 * kImuPeriodNs; t <= end_ns + 2 * kImuPeriodNs; t += kImuPeriodNs) {
     const double s = nsToSeconds(t - kStartNs);
     samples.push_back({t, Eigen::Vector3d(0.3 * std::sin(3 * s), 0.2, -0.4 * std::cos(2 * s)),
@@ -25,8 +25,9 @@ std::vector<io::ImuSample> imuSignal(TimeNs end_ns) {
 }
 
 /// The samples bracketing [t0, t1].
-std::vector<io::ImuSample> bracketing(const std::vector<io::ImuSample>& all, TimeNs t0, TimeNs t1) {
-  std::vector<io::ImuSample> out;
+std::vector<sensors::ImuSample> bracketing(const std::vector<sensors::ImuSample>& all, TimeNs t0,
+                                           TimeNs t1) {
+  std::vector<sensors::ImuSample> out;
   for (std::size_t k = 0; k < all.size(); ++k) {
     const bool next_after_start = k + 1 < all.size() && all[k + 1].t_ns > t0;
     const bool previous_before_end = k > 0 && all[k - 1].t_ns < t1;
@@ -41,7 +42,7 @@ struct CullingScene {
   map::Map map;
   std::vector<map::KeyFrameId> ids;
   std::vector<TimeNs> times;
-  std::vector<io::ImuSample> samples;
+  std::vector<sensors::ImuSample> samples;
 };
 
 std::unique_ptr<CullingScene> makeScene(int count, TimeNs spacing_ns) {
@@ -98,7 +99,7 @@ TEST(KeyFrameCullingTest, RemovesARedundantKeyFrameAndMergesItsPreintegration) {
   // The successor now links to keyframe 0 and holds the samples of both gaps.
   const map::KeyFrame successor = *scene->map.keyFrame(scene->ids[2]);
   EXPECT_EQ(successor.previous, scene->ids[0]);
-  const std::vector<io::ImuSample> expected =
+  const std::vector<sensors::ImuSample> expected =
       bracketing(scene->samples, scene->times[0], scene->times[2]);
   ASSERT_EQ(successor.imu_from_previous.size(), expected.size());
   for (std::size_t k = 0; k < expected.size(); ++k)
@@ -202,16 +203,16 @@ TEST(KeyFramePreintegrationsTest, KeepsNoStepsAndIntegratesAgainWhenTheBiasMoved
 TEST(KeyFramePreintegrationsTest, AThinnedLongLinkPreintegratesLikeItsFullSamples) {
   // 60 s at 200 Hz of a rig turning and accelerating smoothly, as a link between two keyframes
   // far behind the newest that culling lengthened, thinned to the map's 1024 samples.
-  std::vector<io::ImuSample> full;
+  std::vector<sensors::ImuSample> full;
   for (TimeNs t = 0; t <= secondsToNs(60.0); t += secondsToNs(0.005)) {
     const double s = nsToSeconds(t);
-    io::ImuSample sample;
+    sensors::ImuSample sample;
     sample.t_ns = t;
     sample.gyro = Eigen::Vector3d(0.1 * std::sin(0.5 * s), 0.2, 0.05 * std::cos(0.2 * s));
     sample.accel = Eigen::Vector3d(0.3 * std::sin(0.4 * s), 9.81, std::cos(0.3 * s));
     full.push_back(sample);
   }
-  const std::vector<io::ImuSample> thinned = map::thinImuSamples(full, 1024);
+  const std::vector<sensors::ImuSample> thinned = map::thinImuSamples(full, 1024);
   ASSERT_EQ(thinned.size(), 1024u);
   const imu::ImuNoise noise;
   imu::Preintegration from_full(imu::Bias{}, noise);

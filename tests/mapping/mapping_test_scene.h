@@ -46,7 +46,7 @@ inline MappingScene makeMappingScene(const SceneOptions& options) {
   const sim::ImuSequence imu =
       sim::ImuSimulator(imu_options)
           .simulate(motion, {kMotionStartNs, kMotionStartNs + secondsToNs(duration_s - 0.1)});
-  const std::vector<io::ImuSample> samples = toImuSamples(imu.measurements);
+  const std::vector<sensors::ImuSample> samples = toImuSamples(imu.measurements);
 
   MappingScene scene;
   scene.noise = noiseOf(imu_options);
@@ -84,7 +84,7 @@ inline MappingScene makeMappingScene(const SceneOptions& options) {
     T_v_b.t /= options.scale;
     kf.T_w_b = T_v_b;
     if (k > 0) {
-      for (const io::ImuSample& sample : samples) {
+      for (const sensors::ImuSample& sample : samples) {
         const bool after_start = sample.t_ns > t_previous - secondsToNs(0.005);
         const bool before_end = sample.t_ns < t_ns + secondsToNs(0.005);
         if (after_start && before_end) kf.imu_from_previous.push_back(sample);

@@ -390,7 +390,7 @@ TEST(ImuProblemTest, RecoversVelocitiesAndBiasesWithPosePriors) {
   constexpr int kStates = 12;  // 2.75 s
   const sim::ImuSequence seq =
       sim::ImuSimulator(options).simulate(motion, {t_0, t_0 + kStates * spacing});
-  const std::vector<io::ImuSample> samples = test::toImuSamples(seq.measurements);
+  const std::vector<sensors::ImuSample> samples = test::toImuSamples(seq.measurements);
 
   std::vector<ImuStateParameters> states(kStates);
   std::vector<imu::NavState> truth;

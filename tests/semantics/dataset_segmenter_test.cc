@@ -46,7 +46,7 @@ TEST(DatasetSegmenter, ColourImagesGiveTheKeypointLabelsOfTheInstanceMasks) {
   features::FeatureOptions feature_options;
   const auto extractor = features::makeExtractor(feature_options);
   int frames = 0, keypoints = 0, on_vehicles = 0, on_pedestrians = 0;
-  while (const std::optional<io::FrameBundle> bundle = source->next()) {
+  while (const std::optional<sensors::FrameBundle> bundle = source->next()) {
     const auto segment = [&](Segmenter& segmenter) {
       return toInstanceMasks(segmenter.segment(bundle->image0, bundle->t_ns, 0),
                              segmenter.segment(bundle->image1, bundle->t_ns, 1),
@@ -83,7 +83,7 @@ TEST(DatasetSegmenter, InstanceMasksKeepTheirIdsAndClasses) {
   const auto backend = makeSegmenter(datasetOptions("masks"), path);
   const auto source = io::openDataset(io::DatasetKind::kEuroc, path,
                                       {.inertial = false, .max_frames = 1, .instance_masks = true});
-  const io::FrameBundle bundle = *source->next();
+  const sensors::FrameBundle bundle = *source->next();
   const Segmentation segmentation = backend->segment(bundle.image0, bundle.t_ns, 0);
   // Today's reader path and the backend agree.
   EXPECT_EQ(cv::countNonZero(segmentation.ids != bundle.masks->cam0), 0);

@@ -125,7 +125,7 @@ TEST(SensorFaults, AreWrittenAsRealSensorsProduceThem) {
   EXPECT_EQ(dataset.stereoFrames().size(), 27u);  // the frames without cam1 are mono only
   EXPECT_EQ(dataset.monoFrames().size(), 29u);
   EXPECT_TRUE(anyContains(dataset.warnings(), "2 frame(s) have no cam1 frame"));
-  for (const io::ImuSample& sample : dataset.imu())
+  for (const sensors::ImuSample& sample : dataset.imu())
     ASSERT_TRUE(sample.gyro.allFinite() && sample.accel.allFinite());
   EXPECT_TRUE(anyContains(dataset.warnings(), "with nan or inf values skipped"));
   EXPECT_TRUE(anyContains(dataset.warnings(), "about 2 dropped frame(s) in 1 time step(s)"));
@@ -182,7 +182,7 @@ TEST(SensorFaults, RepeatedSwappedAndSaturatedRowsAreRepairedOrSkippedByTheReade
     return t - t0 >= secondsToNs(0.8) && t - t0 < secondsToNs(0.9);
   };
   std::size_t kept = 0;
-  for (const io::ImuSample& sample : clean.imu()) {
+  for (const sensors::ImuSample& sample : clean.imu()) {
     if (saturatedTime(sample.t_ns)) continue;
     ASSERT_LT(kept, faulty.imu().size());
     EXPECT_EQ(faulty.imu()[kept].t_ns, sample.t_ns);

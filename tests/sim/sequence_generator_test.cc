@@ -62,7 +62,8 @@ struct BodyState {
   Eigen::Vector3d p, v;
 };
 
-BodyState integrateImu(const io::GroundTruthState& start, std::span<const io::ImuSample> imu) {
+BodyState integrateImu(const sensors::GroundTruthState& start,
+                       std::span<const sensors::ImuSample> imu) {
   const Eigen::Vector3d g(0, 0, -9.81);
   BodyState s{start.T_w_b.rotation(), start.T_w_b.t, start.v_w};
   for (std::size_t k = 0; k + 1 < imu.size(); ++k) {
@@ -116,8 +117,8 @@ TEST_F(SequenceGeneratorTest, WritesAnEurocSequenceTheReaderAccepts) {
 TEST_F(SequenceGeneratorTest, NoiseFreeImuIntegratesToTheGroundTruth) {
   const io::EurocDataset dataset = io::EurocDataset::open(root());
   const auto& gt = dataset.groundTruth();
-  const io::GroundTruthState& start = gt[40];
-  const io::GroundTruthState& end = gt[240];  // 1 s later
+  const sensors::GroundTruthState& start = gt[40];
+  const sensors::GroundTruthState& end = gt[240];  // 1 s later
   const BodyState s = integrateImu(start, dataset.imuBetween(start.t_ns, end.t_ns));
   EXPECT_LT((s.p - end.T_w_b.t).norm(), 1e-3);
   EXPECT_LT(rotationAngle(s.R.transpose() * end.T_w_b.rotation()) * 180.0 / M_PI, 0.01);

@@ -89,7 +89,7 @@ TEST(MapLocalization, ASecondSequenceOfTheWorldTracksTheLoadedMapWithTheFirstRun
 TEST(MapLocalization, RefusesAMapOfAnotherRig) {
   const auto mapped = openStereoInertial(mappedSequence());
   System mapping(stereoInertial(), mapped->camera0(), mapped->camera1(), mapped->imu());
-  io::CameraCalibration other = mapped->camera0();
+  sensors::CameraCalibration other = mapped->camera0();
   other.fx *= 1.1;
   System elsewhere(stereoInertial(), other, mapped->camera1(), mapped->imu());
   map::MapFile file;

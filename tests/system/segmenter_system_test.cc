@@ -37,7 +37,7 @@ LabelledRun runWith(const semantics::SegmenterOptions& semantics, bool reader_ma
   System slam(options, source->camera0(), source->camera1(), source->imu(),
               semantics::makeSegmenter(semantics, path));
   LabelledRun run;
-  slam.setFrontEndCallback([&](const io::FrameBundle& bundle, const tracking::Frame& frame) {
+  slam.setFrontEndCallback([&](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
     EXPECT_TRUE(bundle.masks.has_value());
     for (const features::Keypoint& k : frame.features.keypoints)
       run.keypoints_on_objects += k.class_id != features::kClassBackground;
@@ -109,7 +109,7 @@ PropagationScore scorePropagation(int every_n_frames) {
       semantics::makeSegmenter(options.semantics, path);
   PropagationScore score;
   cv::Mat last_segmented;
-  slam.setFrontEndCallback([&](const io::FrameBundle& bundle, const tracking::Frame& frame) {
+  slam.setFrontEndCallback([&](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
     const semantics::Segmentation exact = truth->segment(bundle.image0, bundle.t_ns, 0);
     const auto classAt = [](const semantics::Segmentation& s, const cv::Mat& ids,
                             const features::Keypoint& k) {

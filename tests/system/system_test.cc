@@ -72,17 +72,17 @@ class FailingSource final : public io::DatasetSource {
  public:
   FailingSource(std::unique_ptr<io::DatasetSource> source, std::size_t fail_at)
       : source_(std::move(source)), fail_at_(fail_at) {}
-  std::optional<io::FrameBundle> next() override {
+  std::optional<sensors::FrameBundle> next() override {
     if (served_ == fail_at_) throw InputError(InputLocation{"frame.png"}, "unreadable image");
     ++served_;
     return source_->next();
   }
   std::size_t size() const override { return source_->size(); }
-  const io::CameraCalibration& camera0() const override { return source_->camera0(); }
-  const std::optional<io::CameraCalibration>& camera1() const override {
+  const sensors::CameraCalibration& camera0() const override { return source_->camera0(); }
+  const std::optional<sensors::CameraCalibration>& camera1() const override {
     return source_->camera1();
   }
-  const std::optional<io::ImuCalibration>& imu() const override { return source_->imu(); }
+  const std::optional<sensors::ImuCalibration>& imu() const override { return source_->imu(); }
   Trajectory groundTruth() const override { return source_->groundTruth(); }
   const std::vector<std::string>& warnings() const override { return source_->warnings(); }
 
@@ -456,7 +456,7 @@ RunSummary runStereoInertialFiveSeconds(const fs::path& path,
   io::DatasetSourceOptions source_options;
   source_options.max_frames = 100;
   const auto source = io::openDataset(io::DatasetKind::kEuroc, path, source_options);
-  std::optional<io::ImuCalibration> imu = source->imu();
+  std::optional<sensors::ImuCalibration> imu = source->imu();
   if (T_b_i) imu->T_b_i = *T_b_i;
   SystemOptions options;
   options.mode = SensorMode::kStereoInertial;

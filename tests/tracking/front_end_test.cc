@@ -58,7 +58,7 @@ TEST(LabelKeypoints, MarksKeypointsNearAnotherInstanceAsOnTheBorder) {
 }
 
 /// The first stereo frame of the shared EuRoC excerpt.
-io::FrameBundle eurocFrame(const std::filesystem::path& path) {
+sensors::FrameBundle eurocFrame(const std::filesystem::path& path) {
   io::DatasetSourceOptions options;
   options.inertial = false;
   options.max_frames = 1;
@@ -74,7 +74,7 @@ FrontEnd eurocFrontEnd(const std::filesystem::path& path, const FrontEndOptions&
 
 TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
   SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
-  io::FrameBundle bundle = eurocFrame(path);
+  sensors::FrameBundle bundle = eurocFrame(path);
   // A "vehicle" over the left half of cam0 only: its keypoints have background partners.
   sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));
@@ -106,7 +106,7 @@ TEST(FrontEnd, ClassWiseStereoNeverPairsAcrossClasses) {
 
 TEST(FrontEnd, LeftOnlyMasksLabelStereoPointsFromTheLeftKeypoint) {
   SUPERDYNA_REQUIRE_SHARED(path, kEuroc);
-  io::FrameBundle bundle = eurocFrame(path);
+  sensors::FrameBundle bundle = eurocFrame(path);
   // A segmenter run on the left image only: a "vehicle" over its left half, no right mask.
   sensors::InstanceMasks masks;
   masks.cam0 = cv::Mat(bundle.image0.size(), CV_16UC1, cv::Scalar(0));

@@ -17,7 +17,7 @@ using test::kMotionStartNs;
 TEST(ImuSampleBuffer, HandsOverTheSamplesBracketingEachKeyFrameInterval) {
   ImuSampleBuffer buffer;
   const auto sample = [](TimeNs t) {
-    io::ImuSample s;
+    sensors::ImuSample s;
     s.t_ns = t;
     s.gyro = Eigen::Vector3d(0.1, 0.0, 0.0);
     s.accel = Eigen::Vector3d(0.0, 0.0, 9.81);
@@ -26,7 +26,7 @@ TEST(ImuSampleBuffer, HandsOverTheSamplesBracketingEachKeyFrameInterval) {
   buffer.append({sample(0), sample(10), sample(20)});
   buffer.append({sample(20), sample(30)});  // overlapping run: the repeated sample is dropped
   ASSERT_EQ(buffer.samples().size(), 4u);
-  const std::vector<io::ImuSample> interval = buffer.startInterval(25);
+  const std::vector<sensors::ImuSample> interval = buffer.startInterval(25);
   EXPECT_EQ(interval.size(), 4u);
   ASSERT_EQ(buffer.samples().size(), 2u);  // from the last sample at or before 25
   EXPECT_EQ(buffer.samples().front().t_ns, 20);
@@ -34,11 +34,11 @@ TEST(ImuSampleBuffer, HandsOverTheSamplesBracketingEachKeyFrameInterval) {
 
 TEST(ImuGap, FindsTheLastStretchLongerThanTheLimit) {
   const auto at = [](TimeNs t) {
-    io::ImuSample s;
+    sensors::ImuSample s;
     s.t_ns = t;
     return s;
   };
-  const std::vector<io::ImuSample> samples = {at(0), at(5), at(30), at(35), at(80), at(85)};
+  const std::vector<sensors::ImuSample> samples = {at(0), at(5), at(30), at(35), at(80), at(85)};
   EXPECT_FALSE(findImuGap(samples, 45).has_value());  // the 45 ns stretch is at the limit
   const std::optional<ImuGap> gap = findImuGap(samples, 20);
   ASSERT_TRUE(gap.has_value());
@@ -49,7 +49,7 @@ TEST(ImuGap, FindsTheLastStretchLongerThanTheLimit) {
 
 TEST(ImuSampleBuffer, RestartsAfterAGapSoThatNoPredictionSpansIt) {
   const auto at = [](TimeNs t) {
-    io::ImuSample s;
+    sensors::ImuSample s;
     s.t_ns = t;
     return s;
   };
@@ -71,7 +71,7 @@ TEST(InertialPrediction, PredictsTheTruePoseFromTheKeyFrameState) {
   const sim::ImuSequence imu =
       sim::ImuSimulator(imu_options)
           .simulate(motion, {kMotionStartNs, kMotionStartNs + secondsToNs(1.5)});
-  const std::vector<io::ImuSample> samples = test::toImuSamples(imu.measurements);
+  const std::vector<sensors::ImuSample> samples = test::toImuSamples(imu.measurements);
 
   map::KeyFrame keyframe;
   keyframe.t_ns = kMotionStartNs + secondsToNs(0.5);
@@ -120,8 +120,8 @@ map::KeyFrame keyFrameOn(const sim::Se3Spline& motion, TimeNs t_ns, const SE3d& 
 }
 
 /// Noise-free samples of an IMU at T_b_i on `motion` over its first 1.5 s.
-std::vector<io::ImuSample> imuSamples(const sim::Se3Spline& motion, const SE3d& T_b_i,
-                                      const sim::ImuNoiseOptions& imu) {
+std::vector<sensors::ImuSample> imuSamples(const sim::Se3Spline& motion, const SE3d& T_b_i,
+                                           const sim::ImuNoiseOptions& imu) {
   return test::toImuSamples(
       sim::ImuSimulator(imu, T_b_i)
           .simulate(motion, {kMotionStartNs, kMotionStartNs + secondsToNs(1.5)})
@@ -155,7 +155,7 @@ TEST(InertialPrediction, PriorCovarianceMatchesMonteCarloWithARotatedOffsetImu) 
   const SE3d T_b_i = rotatedOffsetImu();
   sim::ImuNoiseOptions imu_options;
   imu_options.noise = false;
-  const std::vector<io::ImuSample> samples = imuSamples(motion, T_b_i, imu_options);
+  const std::vector<sensors::ImuSample> samples = imuSamples(motion, T_b_i, imu_options);
   const map::KeyFrame keyframe =
       keyFrameOn(motion, kMotionStartNs + secondsToNs(0.5), T_b_i, imu_options);
   const TimeNs t_ns = keyframe.t_ns + secondsToNs(0.4);

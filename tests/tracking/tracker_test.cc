@@ -23,8 +23,8 @@
 namespace superdyna::tracking {
 namespace {
 
-io::CameraCalibration calibrationOf(const sim::RigOptions& rig, const SE3d& T_b_c) {
-  io::CameraCalibration c;
+sensors::CameraCalibration calibrationOf(const sim::RigOptions& rig, const SE3d& T_b_c) {
+  sensors::CameraCalibration c;
   c.name = "cam";
   c.T_b_c = T_b_c;
   c.width = rig.width;
@@ -328,7 +328,7 @@ TEST(Tracker, BlankImagesDoNotInitialiseOrCrash) {
   FrontEnd front_end = makeFrontEnd();
   const sim::RigOptions rig;
   for (int i = 0; i < 3; ++i) {
-    io::FrameBundle frame;
+    sensors::FrameBundle frame;
     frame.index = static_cast<std::size_t>(i);
     frame.t_ns = secondsToNs(0.05 * i);
     frame.image0 = cv::Mat::zeros(rig.height, rig.width, CV_8UC1);

@@ -78,7 +78,7 @@ class StereoMatcher {
  public:
   /// T_c1_c0 = cam1.T_b_c^-1 * cam0.T_b_c. Throws OptionError for invalid options or a zero
   /// baseline.
-  StereoMatcher(const io::CameraCalibration& cam0, const io::CameraCalibration& cam1,
+  StereoMatcher(const sensors::CameraCalibration& cam0, const sensors::CameraCalibration& cam1,
                 const StereoMatchOptions& options = {});
 
   /// Matches ordered by left index. Keypoints whose pixel cannot be unprojected are skipped.

@@ -51,7 +51,7 @@ struct ImuNoise {
   double accel_random_walk = 3.0e-3;      ///< Accelerometer bias random walk [m/s^3/sqrt(Hz)].
 
   /// The noise model of a calibration file (sensor.yaml).
-  static ImuNoise fromCalibration(const io::ImuCalibration& calibration);
+  static ImuNoise fromCalibration(const sensors::ImuCalibration& calibration);
 
   /// Throws OptionError naming the first value that is not positive and finite.
   void validate() const;
@@ -124,7 +124,7 @@ class Preintegration {
   /// samples are thus handled by interpolation; the samples should bracket [t0, t1] (one at or
   /// before t0, one at or after t1) - outside the samples the nearest one is held. Throws
   /// OptionError when t1_ns <= t0_ns, `samples` is empty or not strictly increasing in time.
-  void integrateBetween(std::span<const io::ImuSample> samples, TimeNs t0_ns, TimeNs t1_ns);
+  void integrateBetween(std::span<const sensors::ImuSample> samples, TimeNs t0_ns, TimeNs t1_ns);
 
   /// Restarts from the stored steps with a new linearisation bias (exact, not first order).
   /// Throws std::logic_error after releaseSteps().

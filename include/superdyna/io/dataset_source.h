@@ -1,7 +1,7 @@
 #pragma once
-// A dataset as the SLAM pipeline consumes it: one FrameBundle per camera frame, with the images
-// loaded and checked, the IMU samples that cover the interval since the previous frame, and the
-// ground truth at the frame time when the dataset has it. EuRoC (stereo/mono, with or without
+// A dataset as the SLAM pipeline consumes it: one sensors::FrameBundle per camera frame, with the
+// images loaded and checked, the IMU samples that cover the interval since the previous frame, and
+// the ground truth at the frame time when the dataset has it. EuRoC (stereo/mono, with or without
 // IMU) and KITTI odometry (stereo/mono, no IMU) folders are supported.
 
 #include <cstddef>
@@ -14,24 +14,10 @@
 
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/euroc_dataset.h"
+#include "superdyna/sensors/frame_bundle.h"
 #include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::io {
-
-struct FrameBundle {
-  std::size_t index = 0;  ///< 0-based position in the served sequence.
-  TimeNs t_ns = 0;
-  cv::Mat image0;  ///< Left / only camera, CV_8UC1.
-  cv::Mat image1;  ///< Right camera, CV_8UC1; empty in mono.
-  /// IMU samples covering [previous frame time, t_ns]: from the last sample at or before the
-  /// previous frame to the first sample at or after this one (so that integration can
-  /// interpolate at both ends). For the first frame: the samples up to the first one at or
-  /// after t_ns within one IMU period before it. Empty without IMU.
-  std::vector<ImuSample> imu;
-  std::optional<SE3d> T_w_b_gt;  ///< Ground-truth body pose at t_ns (within 1 ms), if any.
-  /// Instance masks, when DatasetSourceOptions::instance_masks asked for them.
-  std::optional<sensors::InstanceMasks> masks;
-};
 
 enum class DatasetKind { kEuroc, kKitti };
 DatasetKind parseDatasetKind(const std::string& name);  ///< "euroc" | "kitti"
@@ -52,15 +38,15 @@ class DatasetSource {
   virtual ~DatasetSource() = default;
 
   /// The next frame, or nullopt at the end. Image problems throw InputError naming the file.
-  virtual std::optional<FrameBundle> next() = 0;
+  virtual std::optional<sensors::FrameBundle> next() = 0;
   /// Number of frames this source serves in total.
   virtual std::size_t size() const = 0;
 
-  virtual const CameraCalibration& camera0() const = 0;
+  virtual const sensors::CameraCalibration& camera0() const = 0;
   /// Second camera's calibration; nullopt in mono.
-  virtual const std::optional<CameraCalibration>& camera1() const = 0;
+  virtual const std::optional<sensors::CameraCalibration>& camera1() const = 0;
   /// IMU calibration; nullopt without IMU.
-  virtual const std::optional<ImuCalibration>& imu() const = 0;
+  virtual const std::optional<sensors::ImuCalibration>& imu() const = 0;
   /// Ground truth of the served time range (body frame; KITTI: left camera), may be empty.
   virtual Trajectory groundTruth() const = 0;
   /// Non-fatal findings of the readers.

@@ -34,24 +34,9 @@
 #include "superdyna/core/trajectory.h"
 #include "superdyna/io/calibration.h"
 #include "superdyna/sensors/instance_masks.h"
+#include "superdyna/sensors/measurements.h"
 
 namespace superdyna::io {
-
-/// One IMU measurement, in the IMU frame.
-struct ImuSample {
-  TimeNs t_ns = 0;
-  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   ///< Angular velocity, rad/s.
-  Eigen::Vector3d accel = Eigen::Vector3d::Zero();  ///< Specific force, m/s^2.
-};
-
-/// One ground-truth state of the body frame.
-struct GroundTruthState {
-  TimeNs t_ns = 0;
-  SE3d T_w_b;                                     ///< Pose of the body in the world frame.
-  Eigen::Vector3d v_w = Eigen::Vector3d::Zero();  ///< Velocity in the world frame, m/s.
-  Eigen::Vector3d bg = Eigen::Vector3d::Zero();   ///< Gyroscope bias, rad/s.
-  Eigen::Vector3d ba = Eigen::Vector3d::Zero();   ///< Accelerometer bias, m/s^2.
-};
 
 class EurocDataset {
  public:
@@ -75,20 +60,20 @@ class EurocDataset {
   /// or holds an instance id that instances.csv does not list with a labelled class.
   cv::Mat loadInstanceMask(const std::filesystem::path& image, cv::Size size) const;
 
-  const CameraCalibration& cam0Calibration() const { return cam0_; }
+  const sensors::CameraCalibration& cam0Calibration() const { return cam0_; }
   /// Empty for a mono dataset.
-  const std::optional<CameraCalibration>& cam1Calibration() const { return cam1_; }
+  const std::optional<sensors::CameraCalibration>& cam1Calibration() const { return cam1_; }
   /// Empty without imu0/.
-  const std::optional<ImuCalibration>& imuCalibration() const { return imu_calibration_; }
+  const std::optional<sensors::ImuCalibration>& imuCalibration() const { return imu_calibration_; }
 
   /// Every cam0 frame, in time order.
   const std::vector<ImageRef>& monoFrames() const { return cam0_frames_; }
   /// Frames whose timestamp is in both cam0 and cam1 (exact match), in time order; empty if mono.
   const std::vector<StereoFrameRef>& stereoFrames() const { return stereo_frames_; }
   /// Every IMU sample, in time order; empty without IMU.
-  const std::vector<ImuSample>& imu() const { return imu_; }
+  const std::vector<sensors::ImuSample>& imu() const { return imu_; }
   /// Every ground-truth state, in time order; empty without ground truth.
-  const std::vector<GroundTruthState>& groundTruth() const { return ground_truth_; }
+  const std::vector<sensors::GroundTruthState>& groundTruth() const { return ground_truth_; }
   /// False when the ground-truth file has only the pose columns: v_w, bg and ba are then zero.
   bool groundTruthHasVelocityAndBiases() const { return ground_truth_full_state_; }
 
@@ -99,7 +84,7 @@ class EurocDataset {
   std::optional<TimeRange> groundTruthTimeRange() const;
 
   /// The IMU samples with t0_ns <= t_ns <= t1_ns (a view into imu(); empty if t1_ns < t0_ns).
-  std::span<const ImuSample> imuBetween(TimeNs t0_ns, TimeNs t1_ns) const;
+  std::span<const sensors::ImuSample> imuBetween(TimeNs t0_ns, TimeNs t1_ns) const;
   /// Whether the IMU stream covers t_ns (first sample <= t_ns <= last sample).
   bool hasImuCoverage(TimeNs t_ns) const;
   /// The stereo frames the IMU covers (those a visual-inertial pipeline can use).
@@ -110,7 +95,8 @@ class EurocDataset {
   /// The ground-truth poses T_w_b as a trajectory (body frame tracked).
   Trajectory groundTruthTrajectory() const;
   /// The ground-truth state closest in time to t_ns, if one lies within max_diff_ns.
-  std::optional<GroundTruthState> groundTruthNearest(TimeNs t_ns, TimeNs max_diff_ns) const;
+  std::optional<sensors::GroundTruthState> groundTruthNearest(TimeNs t_ns,
+                                                              TimeNs max_diff_ns) const;
 
   /// Non-fatal findings of open(): unpaired stereo frames, IMU gaps, dropped cam0 frames, skipped
   /// non-finite IMU rows. One sentence each.
@@ -120,14 +106,14 @@ class EurocDataset {
   EurocDataset() = default;
 
   std::filesystem::path root_;
-  CameraCalibration cam0_;
-  std::optional<CameraCalibration> cam1_;
-  std::optional<ImuCalibration> imu_calibration_;
+  sensors::CameraCalibration cam0_;
+  std::optional<sensors::CameraCalibration> cam1_;
+  std::optional<sensors::ImuCalibration> imu_calibration_;
   std::vector<ImageRef> cam0_frames_;
   std::optional<TimeRange> cam1_range_;  ///< Of every row of cam1/data.csv, paired or not.
   std::vector<StereoFrameRef> stereo_frames_;
-  std::vector<ImuSample> imu_;
-  std::vector<GroundTruthState> ground_truth_;
+  std::vector<sensors::ImuSample> imu_;
+  std::vector<sensors::GroundTruthState> ground_truth_;
   bool ground_truth_full_state_ = false;
   bool has_instance_masks_ = false;
   std::map<int, int> instance_classes_;

@@ -44,10 +44,10 @@ class KittiDataset {
 
   /// Left camera: fx, fy, cx, cy from its projection matrix (P0, or P2 for image_2), size of the
   /// first image, no distortion, rate from the timestamps.
-  const CameraCalibration& leftCalibration() const { return left_; }
+  const sensors::CameraCalibration& leftCalibration() const { return left_; }
   /// Right camera, when calib.txt has its projection matrix (even if its images are absent);
   /// T_b_c is its pose in the left camera frame.
-  const std::optional<CameraCalibration>& rightCalibration() const { return right_; }
+  const std::optional<sensors::CameraCalibration>& rightCalibration() const { return right_; }
   /// Stereo baseline in metres (distance between the optical centres along x), when calib.txt
   /// has the right camera's projection matrix: -P1(0,3) / P1(0,0) for the grayscale pair.
   std::optional<double> baseline() const;
@@ -70,8 +70,8 @@ class KittiDataset {
   std::filesystem::path root_;
   std::vector<ImageRef> left_frames_;
   std::vector<StereoFrameRef> stereo_frames_;
-  CameraCalibration left_;
-  std::optional<CameraCalibration> right_;
+  sensors::CameraCalibration left_;
+  std::optional<sensors::CameraCalibration> right_;
   bool has_times_file_ = false;
   Trajectory ground_truth_;
   std::vector<std::string> warnings_;

@@ -53,7 +53,7 @@ struct KeyFrame {
   /// from the predecessor (mapping/keyframe_preintegration.h). Empty without IMU. When the
   /// predecessor is erased, Map::eraseKeyFrame prepends its samples, so this always spans the
   /// gap to the current predecessor.
-  std::vector<io::ImuSample> imu_from_previous;
+  std::vector<sensors::ImuSample> imu_from_previous;
 
   std::vector<KeyFrameKeypoint> keypoints;
   cv::Mat descriptors;  ///< Row i describes keypoints[i] (CV_8UC1 or CV_32FC1); may be empty.

@@ -86,16 +86,16 @@ struct CovisibleKeyFrame {
 
 /// The samples of `earlier` followed by those of `later` newer than the last of `earlier`: the
 /// IMU run across two consecutive gaps (both bracket the time they share).
-std::vector<io::ImuSample> mergeImuSamples(const std::vector<io::ImuSample>& earlier,
-                                           const std::vector<io::ImuSample>& later);
+std::vector<sensors::ImuSample> mergeImuSamples(const std::vector<sensors::ImuSample>& earlier,
+                                                const std::vector<sensors::ImuSample>& later);
 
 /// At most `max_samples` (>= 3) samples spanning the same time as `samples` (increasing times):
 /// the first and the last kept as they are (they bracket the link's keyframes), those between
 /// replaced by their means over max_samples - 2 bins of equal duration (empty bins give none).
 /// The integral of each signal over the link, which is what preintegration needs, stays up to
 /// the interpolation between coarser samples. Unchanged when short enough.
-std::vector<io::ImuSample> thinImuSamples(std::vector<io::ImuSample> samples,
-                                          std::size_t max_samples);
+std::vector<sensors::ImuSample> thinImuSamples(std::vector<sensors::ImuSample> samples,
+                                               std::size_t max_samples);
 
 /// A correction of the map's keyframes that does not move the world as a whole (a loop closure's
 /// pose graph): each listed keyframe moved by C (T_w_b_new = C * T_w_b_old). Poses held outside

@@ -49,8 +49,8 @@ struct MapIdentity {
   MapDescriptorType descriptor_type = MapDescriptorType::kNone;
   int descriptor_columns = 0;  ///< Bytes (binary) or floats per row.
   std::string sensor_mode;     ///< "stereo" | "stereo-inertial" | "mono" | "mono-inertial".
-  std::vector<io::CameraCalibration> cameras;  ///< cam0 [, cam1] (name, rate unused).
-  std::optional<SE3d> T_b_i;                   ///< The IMU's pose in the body, when inertial.
+  std::vector<sensors::CameraCalibration> cameras;  ///< cam0 [, cam1] (name, rate unused).
+  std::optional<SE3d> T_b_i;                        ///< The IMU's pose in the body, when inertial.
 };
 
 /// Right-camera observations of a keyframe's keypoints (mapping::RightObservations).

@@ -98,7 +98,7 @@ class LocalMapper {
   /// cameras[0] = left, cameras[1] = right (optional) of the rig, in the body frame. `imu`: the
   /// IMU of the rig (enables the inertial stages when options.inertial).
   LocalMapper(const LocalMapperOptions& options, std::vector<optim::ReprojectionCamera> cameras,
-              const std::optional<io::ImuCalibration>& imu = std::nullopt);
+              const std::optional<sensors::ImuCalibration>& imu = std::nullopt);
 
   /// Registers a keyframe's right observations and points it created (for culling).
   void addKeyFrame(map::KeyFrameId id, RightObservations right,
@@ -145,7 +145,7 @@ class LocalMapper {
 
   LocalMapperOptions options_;
   std::vector<optim::ReprojectionCamera> cameras_;
-  std::optional<io::ImuCalibration> imu_;
+  std::optional<sensors::ImuCalibration> imu_;
   std::optional<KeyFramePreintegrations> preintegrations_;
   std::map<map::KeyFrameId, RightObservations> right_;
   std::vector<std::pair<map::MapPointId, map::KeyFrameId>> recent_points_;

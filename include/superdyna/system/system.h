@@ -127,16 +127,16 @@ struct TimingSummary {
 using FrameCallback = std::function<void(const tracking::TrackingResult&)>;
 /// Called in the front-end thread after each frame is built: the bundle with the masks its
 /// keypoints were labelled with, and the frame.
-using FrontEndCallback = std::function<void(const io::FrameBundle&, const tracking::Frame&)>;
+using FrontEndCallback = std::function<void(const sensors::FrameBundle&, const tracking::Frame&)>;
 
 class System {
  public:
   /// With a segmenter (semantics::makeSegmenter(options.semantics, dataset)), every frame's left
   /// image (and the right one, SegmenterOptions::right_labels) is segmented and its keypoints
   /// labelled with those masks instead of the bundle's.
-  System(const SystemOptions& options, const io::CameraCalibration& cam0,
-         const std::optional<io::CameraCalibration>& cam1,
-         const std::optional<io::ImuCalibration>& imu,
+  System(const SystemOptions& options, const sensors::CameraCalibration& cam0,
+         const std::optional<sensors::CameraCalibration>& cam1,
+         const std::optional<sensors::ImuCalibration>& imu,
          std::unique_ptr<semantics::Segmenter> segmenter = nullptr);
 
   System(const System&) = delete;
@@ -146,7 +146,7 @@ class System {
 
   /// Front end and tracking of one frame in the caller's thread. Concurrent pipeline: local mapping
   /// of a new keyframe is queued for the mapping thread (call finish() after the last frame).
-  tracking::TrackingResult process(const io::FrameBundle& bundle);
+  tracking::TrackingResult process(const sensors::FrameBundle& bundle);
 
   /// Processes every remaining frame of `source`, calling on_frame after each one, then finish().
   /// Concurrent pipeline: the front end reads and prepares frames in its own thread. An error in
@@ -215,14 +215,14 @@ class System {
   tracking::TrackingResult track(const tracking::Frame& frame);
   /// The front end's frame of a bundle, its keypoints labelled with the segmenter's masks when
   /// there is one. Runs in the front-end thread.
-  tracking::Frame buildFrame(const io::FrameBundle& bundle);
+  tracking::Frame buildFrame(const sensors::FrameBundle& bundle);
   /// The front end's frame of a bundle labelled with masks: the segmenter's, computed beside the
   /// feature extraction, on every N-th frame (SegmenterOptions::every_n_frames), else propagated
   /// from the frame before. `masks` receives them.
-  tracking::Frame buildSegmentedFrame(const io::FrameBundle& bundle,
+  tracking::Frame buildSegmentedFrame(const sensors::FrameBundle& bundle,
                                       std::optional<sensors::InstanceMasks>& masks);
   /// The segmenter's masks of both images of a bundle.
-  sensors::InstanceMasks segment(const io::FrameBundle& bundle);
+  sensors::InstanceMasks segment(const sensors::FrameBundle& bundle);
   /// The masks of a frame not segmented, propagated from the frame before.
   sensors::InstanceMasks propagate(const features::FeatureSet& left);
   /// Copies the front end's segmentation counters and helper threads' CPU times to timings_.

@@ -23,9 +23,9 @@ struct Frame {
   std::vector<double> depth_m;        ///< Depth in cam0 per keypoint [m]; -1 = no stereo.
   std::vector<Eigen::Vector3d> p_c0;  ///< Stereo point in cam0 [m] (valid when depth_m > 0).
   std::vector<std::optional<Eigen::Vector2d>> right_normalized;  ///< Partner in cam1, if any.
-  std::vector<io::ImuSample> imu;  ///< IMU samples bracketing (previous frame, t_ns].
-  double extract_ms = 0.0;         ///< Time spent on feature extraction.
-  double stereo_ms = 0.0;          ///< Time spent on stereo matching.
+  std::vector<sensors::ImuSample> imu;  ///< IMU samples bracketing (previous frame, t_ns].
+  double extract_ms = 0.0;              ///< Time spent on feature extraction.
+  double stereo_ms = 0.0;               ///< Time spent on stereo matching.
   /// Stereo matches whose two keypoints carry different class_id (0 with class-wise matching).
   int cross_class_stereo = 0;
 

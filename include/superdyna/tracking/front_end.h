@@ -56,11 +56,11 @@ class FrontEnd {
  public:
   /// Without cam1 the front end is monocular: frames carry no stereo depth. Throws InputError
   /// when a learned extractor's model cannot be found.
-  FrontEnd(const FrontEndOptions& options, const io::CameraCalibration& cam0,
-           const std::optional<io::CameraCalibration>& cam1);
+  FrontEnd(const FrontEndOptions& options, const sensors::CameraCalibration& cam0,
+           const std::optional<sensors::CameraCalibration>& cam1);
 
   /// Features (and stereo matches when both a right camera and image1 exist) of one bundle.
-  Frame build(const io::FrameBundle& bundle);
+  Frame build(const sensors::FrameBundle& bundle);
 
   /// Masks that become known only once the left features are extracted: a segmentation running
   /// beside the extraction, or masks propagated through the new features (mask_propagation.h).
@@ -68,7 +68,7 @@ class FrontEnd {
       std::function<std::optional<sensors::InstanceMasks>(const features::FeatureSet& left)>;
   /// As build(bundle), the keypoints labelled with the masks `masks_of` returns (bundle.masks,
   /// when present, take precedence and `masks_of` is not called).
-  Frame build(const io::FrameBundle& bundle, const MasksOfFeatures& masks_of);
+  Frame build(const sensors::FrameBundle& bundle, const MasksOfFeatures& masks_of);
 
   bool isStereo() const { return stereo_matcher_.has_value(); }
   /// Scale pyramid of the extractor (map points and optimisation weights use it).
@@ -79,9 +79,9 @@ class FrontEnd {
 
  private:
   /// Features of both images (the right one empty without stereo), unlabelled.
-  void extract(const io::FrameBundle& bundle, bool stereo, Frame& frame,
+  void extract(const sensors::FrameBundle& bundle, bool stereo, Frame& frame,
                features::FeatureSet& right);
-  void matchStereo(const features::FeatureSet& right, const io::FrameBundle& bundle,
+  void matchStereo(const features::FeatureSet& right, const sensors::FrameBundle& bundle,
                    const std::optional<sensors::InstanceMasks>& masks, Frame& frame) const;
 
   CameraModel camera0_;

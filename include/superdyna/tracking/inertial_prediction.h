@@ -49,26 +49,26 @@ struct ImuGap {
 };
 
 /// The last pair of consecutive samples (time-ordered) more than max_gap_ns apart, if any.
-std::optional<ImuGap> findImuGap(const std::vector<io::ImuSample>& samples, TimeNs max_gap_ns);
+std::optional<ImuGap> findImuGap(const std::vector<sensors::ImuSample>& samples, TimeNs max_gap_ns);
 
 /// IMU samples collected since the newest keyframe: every frame appends its samples (each frame's
 /// run brackets the interval since the previous frame, so consecutive runs overlap by a sample).
 class ImuSampleBuffer {
  public:
   /// Appends the samples newer than the last one held.
-  void append(const std::vector<io::ImuSample>& samples);
+  void append(const std::vector<sensors::ImuSample>& samples);
   /// Starts a new keyframe interval at t_ns: returns the samples held (bracketing the interval
   /// from the previous keyframe) and keeps only those from the last one at or before t_ns.
-  std::vector<io::ImuSample> startInterval(TimeNs t_ns);
+  std::vector<sensors::ImuSample> startInterval(TimeNs t_ns);
   void clear() { samples_.clear(); }
   /// Drops every sample held and keeps from `samples` only those at or after t_ns: after an IMU
   /// gap ending at t_ns the held run no longer brackets the newest keyframe, so neither a
   /// prediction nor the next keyframe's preintegration spans the gap.
-  void restartAt(const std::vector<io::ImuSample>& samples, TimeNs t_ns);
-  const std::vector<io::ImuSample>& samples() const { return samples_; }
+  void restartAt(const std::vector<sensors::ImuSample>& samples, TimeNs t_ns);
+  const std::vector<sensors::ImuSample>& samples() const { return samples_; }
 
  private:
-  std::vector<io::ImuSample> samples_;
+  std::vector<sensors::ImuSample> samples_;
 };
 
 /// Predicts the body pose at t_ns from the keyframe's state and the samples (which must bracket
@@ -76,10 +76,8 @@ class ImuSampleBuffer {
 /// covariance is the preintegration covariance carried into the body pose (the IMU's rotation in
 /// the body frame, the lever arm through which a rotation error moves the body origin, and the
 /// correlation of rotation and position errors) plus the keyframe state's uncertainty (options).
-std::optional<InertialPrediction> predictFromKeyFrame(const map::KeyFrame& keyframe,
-                                                      const std::vector<io::ImuSample>& samples,
-                                                      TimeNs t_ns, const SE3d& T_b_i,
-                                                      const imu::ImuNoise& noise,
-                                                      const InertialPriorOptions& options);
+std::optional<InertialPrediction> predictFromKeyFrame(
+    const map::KeyFrame& keyframe, const std::vector<sensors::ImuSample>& samples, TimeNs t_ns,
+    const SE3d& T_b_i, const imu::ImuNoise& noise, const InertialPriorOptions& options);
 
 }  // namespace superdyna::tracking

@@ -272,9 +272,9 @@ class Tracker {
  public:
   /// cam1 absent = monocular rig.
   Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
-          const mapping::LocalMapperOptions& mapping, const io::CameraCalibration& cam0,
-          const std::optional<io::CameraCalibration>& cam1,
-          const std::optional<io::ImuCalibration>& imu);
+          const mapping::LocalMapperOptions& mapping, const sensors::CameraCalibration& cam0,
+          const std::optional<sensors::CameraCalibration>& cam1,
+          const std::optional<sensors::ImuCalibration>& imu);
 
   /// Tracks one frame built by the FrontEnd (frames in time order).
   TrackingResult track(const Frame& frame);
@@ -481,7 +481,7 @@ class Tracker {
   SE3d T_b_c0_;
   optim::PoseOptimizer pose_optimizer_;
   std::vector<optim::ReprojectionCamera> cameras_;
-  std::optional<io::ImuCalibration> imu_;
+  std::optional<sensors::ImuCalibration> imu_;
   imu::Bias bias_;
   ImuSampleBuffer imu_since_keyframe_;  ///< Samples since the newest keyframe.
   TimeNs last_imu_gap_end_ns_ = 0;      ///< End of the last IMU gap reported.

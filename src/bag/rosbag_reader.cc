@@ -1,0 +1,227 @@
+#include "superdyna/bag/rosbag_reader.h"
+
+#include <fmt/format.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CompressedImage.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::bag {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kImageType = "sensor_msgs/Image";
+constexpr const char* kCompressedImageType = "sensor_msgs/CompressedImage";
+constexpr const char* kImuType = "sensor_msgs/Imu";
+
+TimeNs stampNs(const ros::Time& stamp) {
+  return static_cast<TimeNs>(stamp.sec) * kNsPerSecond + static_cast<TimeNs>(stamp.nsec);
+}
+
+/// The OpenCV type and channel count of a raw image encoding; type -1 when unsupported.
+int cvTypeOf(const std::string& encoding) {
+  if (encoding == "mono8" || encoding == "8UC1") return CV_8UC1;
+  if (encoding == "mono16" || encoding == "16UC1") return CV_16UC1;
+  if (encoding == "rgb8" || encoding == "bgr8" || encoding == "8UC3") return CV_8UC3;
+  return -1;
+}
+
+cv::Mat decodeRaw(const sensor_msgs::Image& msg, const std::string& where) {
+  const int type = cvTypeOf(msg.encoding);
+  if (type < 0) {
+    throw InputError(
+        fmt::format("{}: image encoding '{}' is not supported (mono8, mono16, rgb8, "
+                    "bgr8)",
+                    where, msg.encoding));
+  }
+  const std::size_t row_bytes = static_cast<std::size_t>(msg.width) * CV_ELEM_SIZE(type);
+  if (msg.width == 0 || msg.height == 0 || msg.step < row_bytes ||
+      msg.data.size() < static_cast<std::size_t>(msg.step) * msg.height) {
+    throw InputError(fmt::format("{}: {}x{} {} image with step {} does not fit its {} data bytes",
+                                 where, msg.width, msg.height, msg.encoding, msg.step,
+                                 msg.data.size()));
+  }
+  if (msg.is_bigendian && CV_ELEM_SIZE1(type) > 1) {
+    throw InputError(
+        fmt::format("{}: big-endian {} images are not supported", where, msg.encoding));
+  }
+  const cv::Mat view(static_cast<int>(msg.height), static_cast<int>(msg.width), type,
+                     const_cast<std::uint8_t*>(msg.data.data()), msg.step);
+  cv::Mat image;
+  if (msg.encoding == "rgb8") {
+    cv::cvtColor(view, image, cv::COLOR_RGB2BGR);
+  } else {
+    image = view.clone();
+  }
+  return image;
+}
+
+cv::Mat decodeCompressed(const sensor_msgs::CompressedImage& msg, const std::string& where) {
+  const cv::Mat encoded(1, static_cast<int>(msg.data.size()), CV_8UC1,
+                        const_cast<std::uint8_t*>(msg.data.data()));
+  cv::Mat image = cv::imdecode(encoded, cv::IMREAD_UNCHANGED);
+  if (image.empty()) {
+    throw InputError(fmt::format("{}: compressed image (format '{}', {} bytes) does not decode",
+                                 where, msg.format, msg.data.size()));
+  }
+  if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2BGR);
+  return image;
+}
+
+/// "sensor_msgs/Image" of a compressed format string "png", "rgb8; jpeg compressed bgr8", ...
+std::string compressedEncoding(const std::string& format) {
+  if (format.find("png") != std::string::npos) return "png";
+  if (format.find("jpeg") != std::string::npos || format.find("jpg") != std::string::npos) {
+    return "jpeg";
+  }
+  return format;
+}
+
+}  // namespace
+
+cv::Mat toGray8(const cv::Mat& image) {
+  cv::Mat gray;
+  if (image.type() == CV_8UC1) return image;
+  if (image.type() == CV_16UC1) {
+    image.convertTo(gray, CV_8UC1, 1.0 / 256.0);
+  } else if (image.type() == CV_8UC3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    throw InputError(fmt::format("cannot make a grey image of OpenCV type {}", image.type()));
+  }
+  return gray;
+}
+
+struct RosbagReader::Impl {
+  fs::path path;
+  rosbag::Bag bag;
+  std::vector<BagTopic> topics;
+
+  std::string where(const std::string& topic, std::size_t index) const {
+    return fmt::format("{}, topic {}, message {}", path.string(), topic, index);
+  }
+};
+
+RosbagReader::RosbagReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+RosbagReader::~RosbagReader() = default;
+RosbagReader::RosbagReader(RosbagReader&&) noexcept = default;
+RosbagReader& RosbagReader::operator=(RosbagReader&&) noexcept = default;
+
+RosbagReader RosbagReader::open(const fs::path& bag) {
+  std::error_code ec;
+  if (fs::is_directory(bag, ec)) {
+    throw InputError(InputLocation{bag}, "a folder, not a ROS 1 bag file");
+  }
+  if (!fs::is_regular_file(bag, ec)) {
+    throw InputError(InputLocation{bag}, "bag file not found");
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->path = bag;
+  try {
+    impl->bag.open(bag.string(), rosbag::bagmode::Read);
+    rosbag::View view(impl->bag);
+    std::map<std::string, BagTopic> by_name;
+    for (const rosbag::ConnectionInfo* connection : view.getConnections()) {
+      BagTopic& topic = by_name[connection->topic];
+      topic.name = connection->topic;
+      topic.type = connection->datatype;
+    }
+    for (const rosbag::MessageInstance& message : view)
+      ++by_name[message.getTopic()].messages;
+    for (auto& [name, topic] : by_name)
+      impl->topics.push_back(std::move(topic));
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{bag}, fmt::format("not a readable ROS 1 bag: {}", e.what()));
+  }
+  return RosbagReader(std::move(impl));
+}
+
+const fs::path& RosbagReader::path() const {
+  return impl_->path;
+}
+
+const std::vector<BagTopic>& RosbagReader::topics() const {
+  return impl_->topics;
+}
+
+const BagTopic& RosbagReader::topic(const std::string& name) const {
+  for (const BagTopic& topic : impl_->topics)
+    if (topic.name == name) return topic;
+  std::string names;
+  for (const BagTopic& topic : impl_->topics)
+    names += (names.empty() ? "" : ", ") + topic.name;
+  throw InputError(InputLocation{impl_->path},
+                   fmt::format("no topic '{}' (the bag has: {})", name, names));
+}
+
+void RosbagReader::forEachImage(
+    const std::string& name,
+    const std::function<void(std::size_t index, const BagImage&)>& visit) const {
+  const BagTopic& topic = this->topic(name);
+  if (topic.type != kImageType && topic.type != kCompressedImageType) {
+    throw InputError(InputLocation{impl_->path},
+                     fmt::format("topic {} holds {}, not {} or {}", name, topic.type, kImageType,
+                                 kCompressedImageType));
+  }
+  try {
+    rosbag::View view(impl_->bag, rosbag::TopicQuery(name));
+    std::size_t index = 0;
+    for (const rosbag::MessageInstance& message : view) {
+      BagImage out;
+      if (const auto raw = message.instantiate<sensor_msgs::Image>()) {
+        out.t_ns = stampNs(raw->header.stamp);
+        out.encoding = raw->encoding;
+        out.image = decodeRaw(*raw, impl_->where(name, index));
+      } else if (const auto compressed = message.instantiate<sensor_msgs::CompressedImage>()) {
+        out.t_ns = stampNs(compressed->header.stamp);
+        out.encoding = compressedEncoding(compressed->format);
+        out.image = decodeCompressed(*compressed, impl_->where(name, index));
+      } else {
+        throw InputError(fmt::format("{}: {} does not deserialise as an image",
+                                     impl_->where(name, index), message.getDataType()));
+      }
+      visit(index++, out);
+    }
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));
+  }
+}
+
+std::vector<sensors::ImuSample> RosbagReader::imuSamples(const std::string& name) const {
+  const BagTopic& topic = this->topic(name);
+  if (topic.type != kImuType) {
+    throw InputError(InputLocation{impl_->path},
+                     fmt::format("topic {} holds {}, not {}", name, topic.type, kImuType));
+  }
+  std::vector<sensors::ImuSample> samples;
+  try {
+    rosbag::View view(impl_->bag, rosbag::TopicQuery(name));
+    for (const rosbag::MessageInstance& message : view) {
+      const auto imu = message.instantiate<sensor_msgs::Imu>();
+      if (!imu) {
+        throw InputError(fmt::format("{}: does not deserialise as {}",
+                                     impl_->where(name, samples.size()), kImuType));
+      }
+      sensors::ImuSample sample;
+      sample.t_ns = stampNs(imu->header.stamp);
+      sample.gyro = {imu->angular_velocity.x, imu->angular_velocity.y, imu->angular_velocity.z};
+      sample.accel = {imu->linear_acceleration.x, imu->linear_acceleration.y,
+                      imu->linear_acceleration.z};
+      samples.push_back(sample);
+    }
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));
+  }
+  return samples;
+}
+
+}  // namespace superdyna::bag
