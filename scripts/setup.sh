@@ -23,7 +23,7 @@ packages=(
   clang-format python3 python3-numpy python3-onnx
   clang libfuzzer-14-dev  # bench/fuzz.sh (libFuzzer targets, run briefly by scripts/test.sh)
   # ROS 1 bags (module bag/): ROS's own reader and message headers; python3-rosbag for the tests
-  librosbag-storage-dev libsensor-msgs-dev python3-rosbag
+  librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev python3-rosbag
 )
 
 missing_packages() {

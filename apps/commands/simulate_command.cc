@@ -11,6 +11,9 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/sim/sequence_generator.h"
+#ifdef SUPERDYNA_WITH_ROSBAG
+#include "superdyna/bag/sequence_bag_writer.h"
+#endif
 
 namespace superdyna::apps {
 
@@ -43,6 +46,7 @@ class SimulateCommand : public Command {
 
   int run() override {
     applyChoices();
+    checkBagOutput();
     spdlog::info("simulating {} s of a {} scene, dynamic level {}, mover pattern {}, into {}",
                  options_.motion.duration_s, sim::toString(options_.world.scene),
                  sim::toString(options_.world.dynamic),
@@ -72,6 +76,7 @@ class SimulateCommand : public Command {
         100.0 * summary.max_moving_coverage, 100.0 * summary.mean_unlabelled_moving_coverage,
         100.0 * summary.mean_moving_corner_share, 100.0 * summary.max_moving_corner_share,
         (options_.output_dir / "mav0").string());
+    if (rosbag_) writeBag();
     return 0;
   }
 
@@ -135,6 +140,10 @@ class SimulateCommand : public Command {
                      "Folder of photos (.png/.jpg) to texture the world with instead of procedural "
                      "textures")
         ->check(CLI::ExistingDirectory);
+    sub_->add_option("--rosbag", rosbag_,
+                     "Also write the sequence as a ROS 1 bag in VIODE's layout (/cam0/image_raw, "
+                     "/cam1/image_raw, /cam0/segmentation and /cam1/segmentation with "
+                     "--semantic-color, /imu0, /odometry); the calibration stays in the folder");
     sub_->add_flag("--semantic-color", options_.semantic_color,
                    "Also write VIODE-like colour segmentation images (camX/segmentation)");
     sub_->add_option("--landmarks", options_.landmark_count,
@@ -363,6 +372,31 @@ class SimulateCommand : public Command {
     if (world_of_) applyWorldOf(*world_of_);
   }
 
+  /// --rosbag: fails before the simulation when the bag cannot be written.
+  void checkBagOutput() const {
+    if (!rosbag_) return;
+#ifdef SUPERDYNA_WITH_ROSBAG
+    if (fs::exists(*rosbag_)) {
+      throw OptionError("--rosbag", fmt::format("{} exists already; a bag is never overwritten",
+                                                rosbag_->string()));
+    }
+#else
+    throw OptionError("--rosbag",
+                      "this build has no ROS bag support: install Debian's librosbag-storage-dev, "
+                      "libsensor-msgs-dev and libnav-msgs-dev and build again (scripts/setup.sh)");
+#endif
+  }
+
+  void writeBag() const {
+#ifdef SUPERDYNA_WITH_ROSBAG
+    const auto counts = bag::writeViodeBag(options_.output_dir, *rosbag_, "lz4");
+    std::string listed;
+    for (const auto& [topic, messages] : counts)
+      listed += fmt::format("{}{} {}", listed.empty() ? "" : ", ", topic, messages);
+    fmt::print("  -> {} (VIODE layout, lz4: {})\n", rosbag_->string(), listed);
+#endif
+  }
+
   /// The scene and textures come with the reused world.
   void applyWorldOf(const fs::path& sequence) {
     options_.world_of = sim::readWorldSource(sequence);
@@ -398,6 +432,7 @@ class SimulateCommand : public Command {
   std::string pattern_ = "none";
   std::vector<double> pattern_distance_;
   std::optional<fs::path> texture_dir_;
+  std::optional<fs::path> rosbag_;
   std::optional<fs::path> world_of_;
   std::string noise_ = "on";
   std::string distortion_ = "off";

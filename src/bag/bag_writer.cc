@@ -1,0 +1,152 @@
+#include "superdyna/bag/bag_writer.h"
+
+#include <fmt/format.h>
+#include <nav_msgs/Odometry.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+
+#include "superdyna/core/error.h"
+
+namespace superdyna::bag {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+ros::Time rosTime(TimeNs t_ns) {
+  ros::Time time;
+  time.fromNSec(static_cast<std::uint64_t>(t_ns));
+  return time;
+}
+
+std_msgs::Header header(TimeNs t_ns, const std::string& frame) {
+  std_msgs::Header h;
+  h.stamp = rosTime(t_ns);
+  h.frame_id = frame;
+  return h;
+}
+
+sensor_msgs::Image imageMessage(const cv::Mat& image, TimeNs t_ns, const std::string& frame) {
+  sensor_msgs::Image msg;
+  msg.header = header(t_ns, frame);
+  msg.width = static_cast<std::uint32_t>(image.cols);
+  msg.height = static_cast<std::uint32_t>(image.rows);
+  msg.encoding = image.channels() == 1 ? "mono8" : "bgr8";
+  msg.is_bigendian = 0;
+  msg.step = static_cast<std::uint32_t>(image.cols * image.elemSize());
+  msg.data.resize(static_cast<std::size_t>(msg.step) * msg.height);
+  for (int r = 0; r < image.rows; ++r)
+    std::copy(image.ptr<std::uint8_t>(r), image.ptr<std::uint8_t>(r) + msg.step,
+              msg.data.begin() + static_cast<std::ptrdiff_t>(r) * msg.step);
+  return msg;
+}
+
+sensor_msgs::Imu imuMessage(const sensors::ImuSample& sample, const std::string& frame) {
+  sensor_msgs::Imu msg;
+  msg.header = header(sample.t_ns, frame);
+  msg.orientation_covariance[0] = -1.0;  // no orientation estimate
+  msg.angular_velocity.x = sample.gyro.x();
+  msg.angular_velocity.y = sample.gyro.y();
+  msg.angular_velocity.z = sample.gyro.z();
+  msg.linear_acceleration.x = sample.accel.x();
+  msg.linear_acceleration.y = sample.accel.y();
+  msg.linear_acceleration.z = sample.accel.z();
+  return msg;
+}
+
+nav_msgs::Odometry odometryMessage(const sensors::GroundTruthState& state) {
+  nav_msgs::Odometry msg;
+  msg.header = header(state.t_ns, "world");
+  msg.child_frame_id = "body";
+  const Eigen::Quaterniond& q = state.T_w_b.q;
+  msg.pose.pose.position.x = state.T_w_b.t.x();
+  msg.pose.pose.position.y = state.T_w_b.t.y();
+  msg.pose.pose.position.z = state.T_w_b.t.z();
+  msg.pose.pose.orientation.w = q.w();
+  msg.pose.pose.orientation.x = q.x();
+  msg.pose.pose.orientation.y = q.y();
+  msg.pose.pose.orientation.z = q.z();
+  msg.twist.twist.linear.x = state.v_w.x();  // world frame, as the ground truth holds it
+  msg.twist.twist.linear.y = state.v_w.y();
+  msg.twist.twist.linear.z = state.v_w.z();
+  return msg;
+}
+
+rosbag::compression::CompressionType compressionOf(const std::string& name) {
+  if (name == "bz2") return rosbag::compression::BZ2;
+  if (name == "lz4") return rosbag::compression::LZ4;
+  return rosbag::compression::Uncompressed;
+}
+
+}  // namespace
+
+struct BagWriter::Impl {
+  fs::path file, partial;
+  rosbag::Bag bag;
+  bool closed = false;
+};
+
+BagWriter::BagWriter(const fs::path& file, const std::string& compression)
+    : impl_(std::make_unique<Impl>()) {
+  if (compression != "none" && compression != "bz2" && compression != "lz4") {
+    throw OptionError("compression",
+                      fmt::format("expected none, bz2 or lz4, got '{}'", compression));
+  }
+  std::error_code ec;
+  if (fs::exists(file, ec)) {
+    throw InputError(InputLocation{file}, "exists already; a bag is never overwritten");
+  }
+  impl_->file = file;
+  impl_->partial = file.string() + ".partial";
+  try {
+    impl_->bag.open(impl_->partial.string(), rosbag::bagmode::Write);
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{file}, fmt::format("cannot write a bag: {}", e.what()));
+  }
+  impl_->bag.setCompression(compressionOf(compression));
+}
+
+BagWriter::~BagWriter() {
+  if (impl_->closed) return;
+  try {
+    impl_->bag.close();
+  } catch (...) {
+  }
+  std::error_code ec;
+  fs::remove(impl_->partial, ec);
+}
+
+void BagWriter::writeImage(const std::string& topic, TimeNs t_ns, const cv::Mat& image,
+                           const std::string& frame_id) {
+  if (image.type() != CV_8UC1 && image.type() != CV_8UC3) {
+    throw InputError(fmt::format("{}: images must be CV_8UC1 or CV_8UC3, got OpenCV type {}", topic,
+                                 image.type()));
+  }
+  impl_->bag.write(topic, rosTime(t_ns), imageMessage(image, t_ns, frame_id));
+  ++counts_[topic];
+}
+
+void BagWriter::writeImu(const std::string& topic, const sensors::ImuSample& sample,
+                         const std::string& frame_id) {
+  impl_->bag.write(topic, rosTime(sample.t_ns), imuMessage(sample, frame_id));
+  ++counts_[topic];
+}
+
+void BagWriter::writeOdometry(const std::string& topic, const sensors::GroundTruthState& state) {
+  impl_->bag.write(topic, rosTime(state.t_ns), odometryMessage(state));
+  ++counts_[topic];
+}
+
+void BagWriter::close() {
+  try {
+    impl_->bag.close();
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{impl_->file},
+                     fmt::format("writing the bag failed: {}", e.what()));
+  }
+  fs::rename(impl_->partial, impl_->file);
+  impl_->closed = true;
+}
+
+}  // namespace superdyna::bag
