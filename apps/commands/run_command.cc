@@ -21,6 +21,9 @@
 #include "superdyna/core/process_memory.h"
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
+#ifdef SUPERDYNA_WITH_ROSBAG
+#include "superdyna/bag/bag_source.h"
+#endif
 #include "superdyna/io/trajectory_io.h"
 #include "superdyna/map/map_file.h"
 #include "superdyna/semantics/overlay.h"
@@ -399,7 +402,15 @@ class RunCommand : public Command {
  public:
   explicit RunCommand(CLI::App& app) {
     sub_ = app.add_subcommand("run", "Run SLAM over a dataset and write the trajectory");
-    addDatasetOptions(*sub_, kind_, path_);
+    addDatasetOptions(*sub_, kind_, path_, /*bags=*/true);
+    sub_->add_option("--calibration", bag_calibration_,
+                     "rosbag: the folder of EuRoC-style sensor.yaml files (cam0/, cam1/, imu0/; a "
+                     "mav0 folder or the sequence folder holding it) calibrating the bag's sensors")
+        ->check(CLI::ExistingDirectory);
+    sub_->add_option("--topics", bag_topics_,
+                     "rosbag: topic preset: viode or euroc (/cam0/image_raw, /cam1/image_raw, "
+                     "/imu0; ground truth from /odometry when the bag has it)")
+        ->capture_default_str();
     sub_->add_option("--mode", mode_,
                      "Sensor mode: stereo | stereo-inertial | mono | mono-inertial")
         ->capture_default_str();
@@ -481,6 +492,23 @@ class RunCommand : public Command {
   }
 
   CLI::App* subcommand() const override { return sub_; }
+
+  /// The dataset folder, or the bag with its calibration.
+  std::unique_ptr<io::DatasetSource> openSource(const io::DatasetSourceOptions& options) const {
+    if (kind_ != "rosbag") return io::openDataset(io::parseDatasetKind(kind_), path_, options);
+#ifdef SUPERDYNA_WITH_ROSBAG
+    if (!bag_calibration_) {
+      throw OptionError("--calibration",
+                        "--dataset rosbag needs the folder of the bag's "
+                        "sensor.yaml files (bags carry no calibration)");
+    }
+    return bag::openBagSource(path_, *bag_calibration_, bag::bagTopicsPreset(bag_topics_), options);
+#else
+    throw OptionError("--dataset",
+                      "this build has no ROS bag support: install Debian's librosbag-storage-dev, "
+                      "libsensor-msgs-dev and libnav-msgs-dev and build again (scripts/setup.sh)");
+#endif
+  }
 
   /// The dataset is the user's data: never write a result over one of its files.
   void refuseOutputInsideDataset(const fs::path& file, const std::string& option) const {
@@ -647,7 +675,7 @@ class RunCommand : public Command {
     source_options.stereo = !system::isMonocular(options.mode);
     source_options.inertial = system::usesImu(options.mode);
     source_options.max_frames = max_frames_;
-    const auto source = io::openDataset(io::parseDatasetKind(kind_), path_, source_options);
+    const std::unique_ptr<io::DatasetSource> source = openSource(source_options);
     for (const std::string& warning : source->warnings())
       fmt::print("warning: {}\n", warning);
     std::unique_ptr<semantics::Segmenter> segmenter =
@@ -754,6 +782,8 @@ class RunCommand : public Command {
  private:
   CLI::App* sub_ = nullptr;
   std::string kind_ = "euroc";
+  std::optional<fs::path> bag_calibration_;
+  std::string bag_topics_ = "viode";
   fs::path path_;
   std::string mode_ = "stereo";
   fs::path output_;

@@ -1,6 +1,7 @@
 #include "superdyna/bag/rosbag_reader.h"
 
 #include <fmt/format.h>
+#include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CompressedImage.h>
@@ -22,6 +23,7 @@ namespace {
 constexpr const char* kImageType = "sensor_msgs/Image";
 constexpr const char* kCompressedImageType = "sensor_msgs/CompressedImage";
 constexpr const char* kImuType = "sensor_msgs/Imu";
+constexpr const char* kOdometryType = "nav_msgs/Odometry";
 
 TimeNs stampNs(const ros::Time& stamp) {
   return static_cast<TimeNs>(stamp.sec) * kNsPerSecond + static_cast<TimeNs>(stamp.nsec);
@@ -163,45 +165,137 @@ const BagTopic& RosbagReader::topic(const std::string& name) const {
                    fmt::format("no topic '{}' (the bag has: {})", name, names));
 }
 
+namespace {
+
+/// One image message decoded; InputError naming `where` for anything else.
+BagImage decodeImageMessage(const rosbag::MessageInstance& message, const std::string& where) {
+  BagImage out;
+  if (const auto raw = message.instantiate<sensor_msgs::Image>()) {
+    out.t_ns = stampNs(raw->header.stamp);
+    out.encoding = raw->encoding;
+    out.image = decodeRaw(*raw, where);
+  } else if (const auto compressed = message.instantiate<sensor_msgs::CompressedImage>()) {
+    out.t_ns = stampNs(compressed->header.stamp);
+    out.encoding = compressedEncoding(compressed->format);
+    out.image = decodeCompressed(*compressed, where);
+  } else {
+    throw InputError(
+        fmt::format("{}: {} does not deserialise as an image", where, message.getDataType()));
+  }
+  return out;
+}
+
+/// The header stamp of an image message without decoding its pixels.
+TimeNs imageStamp(const rosbag::MessageInstance& message, const std::string& where) {
+  if (const auto raw = message.instantiate<sensor_msgs::Image>()) return stampNs(raw->header.stamp);
+  if (const auto compressed = message.instantiate<sensor_msgs::CompressedImage>()) {
+    return stampNs(compressed->header.stamp);
+  }
+  throw InputError(
+      fmt::format("{}: {} does not deserialise as an image", where, message.getDataType()));
+}
+
+void requireType(const BagTopic& topic, const fs::path& bag,
+                 std::initializer_list<const char*> types) {
+  std::string listed;
+  for (const char* type : types) {
+    if (topic.type == type) return;
+    listed += fmt::format("{}{}", listed.empty() ? "" : " or ", type);
+  }
+  throw InputError(InputLocation{bag},
+                   fmt::format("topic {} holds {}, not {}", topic.name, topic.type, listed));
+}
+
+}  // namespace
+
 void RosbagReader::forEachImage(
     const std::string& name,
     const std::function<void(std::size_t index, const BagImage&)>& visit) const {
-  const BagTopic& topic = this->topic(name);
-  if (topic.type != kImageType && topic.type != kCompressedImageType) {
-    throw InputError(InputLocation{impl_->path},
-                     fmt::format("topic {} holds {}, not {} or {}", name, topic.type, kImageType,
-                                 kCompressedImageType));
-  }
+  BagImageStream stream(*this, name);
+  std::size_t index = 0;
+  while (const std::optional<BagImage> image = stream.next())
+    visit(index++, *image);
+}
+
+std::vector<TimeNs> RosbagReader::imageStamps(const std::string& name) const {
+  requireType(topic(name), impl_->path, {kImageType, kCompressedImageType});
+  std::vector<TimeNs> stamps;
   try {
     rosbag::View view(impl_->bag, rosbag::TopicQuery(name));
-    std::size_t index = 0;
+    for (const rosbag::MessageInstance& message : view)
+      stamps.push_back(imageStamp(message, impl_->where(name, stamps.size())));
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));
+  }
+  return stamps;
+}
+
+std::vector<sensors::GroundTruthState> RosbagReader::odometry(const std::string& name) const {
+  requireType(topic(name), impl_->path, {kOdometryType});
+  std::vector<sensors::GroundTruthState> states;
+  try {
+    rosbag::View view(impl_->bag, rosbag::TopicQuery(name));
     for (const rosbag::MessageInstance& message : view) {
-      BagImage out;
-      if (const auto raw = message.instantiate<sensor_msgs::Image>()) {
-        out.t_ns = stampNs(raw->header.stamp);
-        out.encoding = raw->encoding;
-        out.image = decodeRaw(*raw, impl_->where(name, index));
-      } else if (const auto compressed = message.instantiate<sensor_msgs::CompressedImage>()) {
-        out.t_ns = stampNs(compressed->header.stamp);
-        out.encoding = compressedEncoding(compressed->format);
-        out.image = decodeCompressed(*compressed, impl_->where(name, index));
-      } else {
-        throw InputError(fmt::format("{}: {} does not deserialise as an image",
-                                     impl_->where(name, index), message.getDataType()));
+      const auto odometry = message.instantiate<nav_msgs::Odometry>();
+      if (!odometry) {
+        throw InputError(fmt::format("{}: does not deserialise as {}",
+                                     impl_->where(name, states.size()), kOdometryType));
       }
-      visit(index++, out);
+      const auto& p = odometry->pose.pose.position;
+      const auto& q = odometry->pose.pose.orientation;
+      const auto& v = odometry->twist.twist.linear;
+      sensors::GroundTruthState state;
+      state.t_ns = stampNs(odometry->header.stamp);
+      state.T_w_b = SE3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z),  // SE3d normalises
+                         Eigen::Vector3d(p.x, p.y, p.z));
+      state.v_w = Eigen::Vector3d(v.x, v.y, v.z);
+      states.push_back(state);
     }
   } catch (const rosbag::BagException& e) {
     throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));
   }
+  return states;
+}
+
+struct BagImageStream::Impl {
+  const RosbagReader::Impl* reader = nullptr;
+  std::string topic;
+  std::unique_ptr<rosbag::View> view;
+  rosbag::View::iterator it;
+  std::size_t index = 0;
+};
+
+BagImageStream::BagImageStream(const RosbagReader& reader, const std::string& topic)
+    : impl_(std::make_unique<Impl>()) {
+  requireType(reader.topic(topic), reader.path(), {kImageType, kCompressedImageType});
+  impl_->reader = reader.impl_.get();
+  impl_->topic = topic;
+  try {
+    impl_->view = std::make_unique<rosbag::View>(reader.impl_->bag, rosbag::TopicQuery(topic));
+    impl_->it = impl_->view->begin();
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{reader.path()}, fmt::format("topic {}: {}", topic, e.what()));
+  }
+}
+
+BagImageStream::~BagImageStream() = default;
+
+std::optional<BagImage> BagImageStream::next() {
+  try {
+    if (impl_->it == impl_->view->end()) return std::nullopt;
+    BagImage image =
+        decodeImageMessage(*impl_->it, impl_->reader->where(impl_->topic, impl_->index));
+    ++impl_->it;
+    ++impl_->index;
+    return image;
+  } catch (const rosbag::BagException& e) {
+    throw InputError(InputLocation{impl_->reader->path},
+                     fmt::format("topic {}: {}", impl_->topic, e.what()));
+  }
 }
 
 std::vector<sensors::ImuSample> RosbagReader::imuSamples(const std::string& name) const {
-  const BagTopic& topic = this->topic(name);
-  if (topic.type != kImuType) {
-    throw InputError(InputLocation{impl_->path},
-                     fmt::format("topic {} holds {}, not {}", name, topic.type, kImuType));
-  }
+  requireType(topic(name), impl_->path, {kImuType});
   std::vector<sensors::ImuSample> samples;
   try {
     rosbag::View view(impl_->bag, rosbag::TopicQuery(name));

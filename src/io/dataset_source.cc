@@ -38,17 +38,6 @@ std::vector<StereoFrameRef> asStereoRefs(const std::vector<ImageRef>& mono) {
   return frames;
 }
 
-/// IMU samples from the last one at or before t0 to the first one at or after t1.
-std::vector<sensors::ImuSample> bracketingImu(const std::vector<sensors::ImuSample>& imu, TimeNs t0,
-                                              TimeNs t1) {
-  const auto by_time = [](const sensors::ImuSample& s, TimeNs t) { return s.t_ns < t; };
-  auto first = std::lower_bound(imu.begin(), imu.end(), t0, by_time);
-  if (first != imu.begin() && (first == imu.end() || first->t_ns > t0)) --first;
-  auto last = std::lower_bound(imu.begin(), imu.end(), t1, by_time);
-  if (last != imu.end()) ++last;
-  return {first, last};
-}
-
 /// A source serving a fixed list of frames; the dataset-specific part adds IMU and ground truth.
 class FrameListSource : public DatasetSource {
  public:
@@ -204,6 +193,16 @@ class KittiSource : public FrameListSource {
 };
 
 }  // namespace
+
+std::vector<sensors::ImuSample> bracketingImu(const std::vector<sensors::ImuSample>& imu, TimeNs t0,
+                                              TimeNs t1) {
+  const auto by_time = [](const sensors::ImuSample& s, TimeNs t) { return s.t_ns < t; };
+  auto first = std::lower_bound(imu.begin(), imu.end(), t0, by_time);
+  if (first != imu.begin() && (first == imu.end() || first->t_ns > t0)) --first;
+  auto last = std::lower_bound(imu.begin(), imu.end(), t1, by_time);
+  if (last != imu.end()) ++last;
+  return {first, last};
+}
 
 DatasetKind parseDatasetKind(const std::string& name) {
   if (name == "euroc") return DatasetKind::kEuroc;

@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,8 @@ struct BagImage {
 /// Grey 8-bit view of a decoded image (CV_16UC1 scaled by 1/256, colour converted).
 cv::Mat toGray8(const cv::Mat& image);
 
+class BagImageStream;
+
 class RosbagReader {
  public:
   /// Opens a bag; InputError naming the file when it is missing or not a readable bag.
@@ -60,10 +63,34 @@ class RosbagReader {
                     const std::function<void(std::size_t index, const BagImage&)>& visit) const;
   /// The samples of a sensor_msgs/Imu topic in the bag's order.
   std::vector<sensors::ImuSample> imuSamples(const std::string& topic) const;
+  /// The header stamps of an image topic's messages in the bag's order.
+  std::vector<TimeNs> imageStamps(const std::string& topic) const;
+  /// A nav_msgs/Odometry topic as ground-truth states (pose; twist linear as the world-frame
+  /// velocity; biases zero) in the bag's order.
+  std::vector<sensors::GroundTruthState> odometry(const std::string& topic) const;
 
  private:
   struct Impl;
   explicit RosbagReader(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+  friend class BagImageStream;
+};
+
+/// The messages of an image topic one at a time, in the bag's order (for sequences too long to
+/// hold in memory). The reader must outlive the stream.
+class BagImageStream {
+ public:
+  /// InputError as RosbagReader::forEachImage for a topic that is missing or holds no images.
+  BagImageStream(const RosbagReader& reader, const std::string& topic);
+  ~BagImageStream();
+  BagImageStream(const BagImageStream&) = delete;
+  BagImageStream& operator=(const BagImageStream&) = delete;
+
+  /// The next image, or nullopt after the last.
+  std::optional<BagImage> next();
+
+ private:
+  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 

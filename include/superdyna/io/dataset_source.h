@@ -53,6 +53,11 @@ class DatasetSource {
   virtual const std::vector<std::string>& warnings() const = 0;
 };
 
+/// IMU samples from the last one at or before t0 to the first one at or after t1 (samples in time
+/// order): what a frame at t1 after a frame at t0 integrates, interpolating at both ends.
+std::vector<sensors::ImuSample> bracketingImu(const std::vector<sensors::ImuSample>& imu, TimeNs t0,
+                                              TimeNs t1);
+
 std::unique_ptr<DatasetSource> openDataset(DatasetKind kind, const std::filesystem::path& path,
                                            const DatasetSourceOptions& options);
 

@@ -1,0 +1,40 @@
+#pragma once
+// A ROS 1 bag as a dataset source of the SLAM pipeline (io::DatasetSource): stereo or mono images,
+// IMU samples and ground truth read from the topics a preset names, the calibration from
+// EuRoC-style sensor.yaml files (bags carry none: VIODE ships its calibration beside its bags).
+// Frames are served as the EuRoC reader serves them, so a sequence written as a bag
+// (writeViodeBag) and read back gives the same frames, IMU intervals and ground truth as its
+// folder: stereo pairs are the left and right messages with the same header stamp; with IMU only
+// frames inside the IMU's time range; each frame's IMU samples bracket the interval since the
+// previous frame (io::bracketingImu); ground truth within 1 ms of the frame. Images are decoded
+// one frame at a time (a bag may be larger than the memory).
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "superdyna/io/dataset_source.h"
+
+namespace superdyna::bag {
+
+/// The topics a bag source reads; an empty name = not read.
+struct BagTopics {
+  std::string cam0 = "/cam0/image_raw";
+  std::string cam1 = "/cam1/image_raw";
+  std::string imu = "/imu0";
+  std::string ground_truth = "/odometry";  ///< nav_msgs/Odometry of the body.
+};
+
+/// "viode" (and "euroc", whose official bags use cam0/cam1/imu0 too, without odometry: the ground
+/// truth topic is read only when present). OptionError naming --topics otherwise.
+BagTopics bagTopicsPreset(const std::string& name);
+
+/// The bag at `bag` with the calibration in `calibration` (a folder holding cam0/sensor.yaml,
+/// cam1/sensor.yaml in stereo and imu0/sensor.yaml with IMU, in EuRoC's format: an EuRoC mav0
+/// folder or the sequence folder holding it). InputError naming the bag, topic or file.
+std::unique_ptr<io::DatasetSource> openBagSource(const std::filesystem::path& bag,
+                                                 const std::filesystem::path& calibration,
+                                                 const BagTopics& topics,
+                                                 const io::DatasetSourceOptions& options);
+
+}  // namespace superdyna::bag

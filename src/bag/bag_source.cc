@@ -1,0 +1,184 @@
+#include "superdyna/bag/bag_source.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <optional>
+
+#include "superdyna/bag/rosbag_reader.h"
+#include "superdyna/core/error.h"
+#include "superdyna/io/calibration.h"
+
+namespace superdyna::bag {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr TimeNs kGroundTruthToleranceNs = kNsPerMillisecond;
+
+/// The folder holding cam0/sensor.yaml: `calibration` or its mav0/.
+fs::path sensorFolder(const fs::path& calibration) {
+  if (fs::exists(calibration / "cam0" / "sensor.yaml")) return calibration;
+  if (fs::exists(calibration / "mav0" / "cam0" / "sensor.yaml")) return calibration / "mav0";
+  throw InputError(InputLocation{calibration},
+                   "no cam0/sensor.yaml here or in mav0/ (the calibration of a bag is an "
+                   "EuRoC-style folder of sensor.yaml files)");
+}
+
+bool hasTopic(const RosbagReader& reader, const std::string& name) {
+  return std::any_of(reader.topics().begin(), reader.topics().end(),
+                     [&](const BagTopic& topic) { return topic.name == name; });
+}
+
+class BagSource : public io::DatasetSource {
+ public:
+  BagSource(const fs::path& bag, const fs::path& calibration, const BagTopics& topics,
+            const io::DatasetSourceOptions& options)
+      : reader_(RosbagReader::open(bag)), topics_(topics), options_(options) {
+    if (options.instance_masks) {
+      throw InputError(InputLocation{bag}, "instance masks are not read from bags yet");
+    }
+    readCalibration(sensorFolder(calibration));
+    if (options.inertial) imu_samples_ = reader_.imuSamples(topics.imu);
+    if (!topics.ground_truth.empty() && hasTopic(reader_, topics.ground_truth)) {
+      ground_truth_ = reader_.odometry(topics.ground_truth);
+    }
+    selectFrames();
+    left_ = std::make_unique<BagImageStream>(reader_, topics.cam0);
+    if (options.stereo) right_ = std::make_unique<BagImageStream>(reader_, topics.cam1);
+  }
+
+  std::optional<sensors::FrameBundle> next() override {
+    if (next_ >= frames_.size()) return std::nullopt;
+    sensors::FrameBundle bundle;
+    bundle.index = next_;
+    bundle.t_ns = frames_[next_];
+    bundle.image0 = imageAt(*left_, bundle.t_ns, camera0_);
+    if (right_) bundle.image1 = imageAt(*right_, bundle.t_ns, *camera1_);
+    if (options_.inertial) {
+      const TimeNs t_prev = next_ == 0 ? bundle.t_ns : frames_[next_ - 1];
+      bundle.imu = io::bracketingImu(imu_samples_, t_prev, bundle.t_ns);
+    }
+    if (const auto gt = groundTruthNear(bundle.t_ns)) bundle.T_w_b_gt = gt->T_w_b;
+    ++next_;
+    return bundle;
+  }
+
+  std::size_t size() const override { return frames_.size(); }
+  const sensors::CameraCalibration& camera0() const override { return camera0_; }
+  const std::optional<sensors::CameraCalibration>& camera1() const override { return camera1_; }
+  const std::optional<sensors::ImuCalibration>& imu() const override { return imu_; }
+  const std::vector<std::string>& warnings() const override { return warnings_; }
+
+  Trajectory groundTruth() const override {
+    Trajectory served;
+    if (frames_.empty()) return served;
+    for (const sensors::GroundTruthState& state : ground_truth_) {
+      if (state.t_ns + kGroundTruthToleranceNs >= frames_.front() &&
+          state.t_ns <= frames_.back() + kGroundTruthToleranceNs) {
+        served.push_back({state.t_ns, state.T_w_b});
+      }
+    }
+    return served;
+  }
+
+ private:
+  void readCalibration(const fs::path& folder) {
+    camera0_ = io::readCameraCalibration(folder / "cam0" / "sensor.yaml");
+    if (options_.stereo) camera1_ = io::readCameraCalibration(folder / "cam1" / "sensor.yaml");
+    if (options_.inertial) imu_ = io::readImuCalibration(folder / "imu0" / "sensor.yaml");
+  }
+
+  /// The served frame times: left stamps (with a right image of the same stamp in stereo, and
+  /// inside the IMU's range with IMU), then first_frame and max_frames.
+  void selectFrames() {
+    std::vector<TimeNs> left = reader_.imageStamps(topics_.cam0);
+    if (options_.stereo) {
+      const std::vector<TimeNs> right = reader_.imageStamps(topics_.cam1);
+      std::vector<TimeNs> paired;
+      std::set_intersection(left.begin(), left.end(), right.begin(), right.end(),
+                            std::back_inserter(paired));
+      if (paired.size() < left.size()) {
+        warnings_.push_back(fmt::format("{}: {} of {} {} images have no {} image of the same stamp",
+                                        reader_.path().string(), left.size() - paired.size(),
+                                        left.size(), topics_.cam0, topics_.cam1));
+      }
+      left = std::move(paired);
+    }
+    if (options_.inertial) {
+      std::erase_if(left, [&](TimeNs t) {
+        return imu_samples_.empty() || t < imu_samples_.front().t_ns ||
+               t > imu_samples_.back().t_ns;
+      });
+    }
+    if (options_.first_frame >= left.size()) {
+      throw OptionError("first-frame",
+                        fmt::format("{} has only {} usable frames, cannot skip {}",
+                                    reader_.path().string(), left.size(), options_.first_frame));
+    }
+    left.erase(left.begin(), left.begin() + static_cast<std::ptrdiff_t>(options_.first_frame));
+    if (options_.max_frames > 0 && left.size() > options_.max_frames)
+      left.resize(options_.max_frames);
+    frames_ = std::move(left);
+  }
+
+  /// The image of `stream` stamped t_ns (earlier ones skipped), grey 8-bit, checked against the
+  /// camera's calibrated size.
+  cv::Mat imageAt(BagImageStream& stream, TimeNs t_ns,
+                  const sensors::CameraCalibration& camera) const {
+    while (std::optional<BagImage> image = stream.next()) {
+      if (image->t_ns < t_ns) continue;
+      if (image->t_ns > t_ns) break;
+      if (image->image.cols != camera.width || image->image.rows != camera.height) {
+        throw InputError(
+            InputLocation{reader_.path()},
+            fmt::format("{} image at {} ns is {}x{}, the calibration says {}x{}", camera.name, t_ns,
+                        image->image.cols, image->image.rows, camera.width, camera.height));
+      }
+      return toGray8(image->image);
+    }
+    throw InputError(
+        InputLocation{reader_.path()},
+        fmt::format("no {} image stamped {} ns (messages out of stamp order?)", camera.name, t_ns));
+  }
+
+  std::optional<sensors::GroundTruthState> groundTruthNear(TimeNs t_ns) const {
+    const auto by_time = [](const sensors::GroundTruthState& s, TimeNs t) { return s.t_ns < t; };
+    auto it = std::lower_bound(ground_truth_.begin(), ground_truth_.end(), t_ns, by_time);
+    std::optional<sensors::GroundTruthState> best;
+    for (auto c : {it, it == ground_truth_.begin() ? it : std::prev(it)}) {
+      if (c == ground_truth_.end() || std::abs(c->t_ns - t_ns) > kGroundTruthToleranceNs) continue;
+      if (!best || std::abs(c->t_ns - t_ns) < std::abs(best->t_ns - t_ns)) best = *c;
+    }
+    return best;
+  }
+
+  RosbagReader reader_;
+  BagTopics topics_;
+  io::DatasetSourceOptions options_;
+  sensors::CameraCalibration camera0_;
+  std::optional<sensors::CameraCalibration> camera1_;
+  std::optional<sensors::ImuCalibration> imu_;
+  std::vector<sensors::ImuSample> imu_samples_;
+  std::vector<sensors::GroundTruthState> ground_truth_;
+  std::vector<TimeNs> frames_;
+  std::vector<std::string> warnings_;
+  std::unique_ptr<BagImageStream> left_, right_;
+  std::size_t next_ = 0;
+};
+
+}  // namespace
+
+BagTopics bagTopicsPreset(const std::string& name) {
+  if (name == "viode" || name == "euroc") return BagTopics{};
+  throw OptionError("--topics", fmt::format("expected viode or euroc, got '{}'", name));
+}
+
+std::unique_ptr<io::DatasetSource> openBagSource(const fs::path& bag, const fs::path& calibration,
+                                                 const BagTopics& topics,
+                                                 const io::DatasetSourceOptions& options) {
+  return std::make_unique<BagSource>(bag, calibration, topics, options);
+}
+
+}  // namespace superdyna::bag

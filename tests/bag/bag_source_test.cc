@@ -1,0 +1,106 @@
+// A simulated sequence written as a VIODE-layout bag (writeViodeBag) and served by openBagSource
+// gives the folder's frames, and the deterministic pipeline the same trajectory, bit for bit.
+
+#include "superdyna/bag/bag_source.h"
+
+#include <gtest/gtest.h>
+
+#include "superdyna/bag/sequence_bag_writer.h"
+#include "superdyna/core/error.h"
+#include "superdyna/system/system.h"
+#include "support/generated_sequence.h"
+#include "support/test_support.h"
+
+namespace superdyna::bag {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path& streetSequence() {
+  return test::generatedSequence(
+      "bag_source_street",
+      test::flightOptions(4.0, sim::SceneType::kStreet, sim::DynamicLevel::kMid, 21));
+}
+
+Trajectory runDeterministic(io::DatasetSource& source, system::SensorMode mode) {
+  system::SystemOptions options;
+  options.mode = mode;
+  options.deterministic = true;
+  system::System slam(options, source.camera0(), source.camera1(), source.imu());
+  slam.run(source, {});
+  return slam.trajectory();
+}
+
+void expectSameFrames(io::DatasetSource& folder, io::DatasetSource& bag) {
+  ASSERT_EQ(bag.size(), folder.size());
+  EXPECT_EQ(bag.groundTruth().size(), folder.groundTruth().size());
+  while (const auto expected = folder.next()) {
+    const auto actual = bag.next();
+    ASSERT_TRUE(actual.has_value());
+    ASSERT_EQ(actual->t_ns, expected->t_ns);
+    EXPECT_EQ(cv::norm(actual->image0, expected->image0, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(actual->image1, expected->image1, cv::NORM_INF), 0.0);
+    ASSERT_EQ(actual->imu.size(), expected->imu.size());
+    for (std::size_t i = 0; i < expected->imu.size(); ++i) {
+      EXPECT_EQ(actual->imu[i].t_ns, expected->imu[i].t_ns);
+      EXPECT_EQ(actual->imu[i].gyro, expected->imu[i].gyro);
+      EXPECT_EQ(actual->imu[i].accel, expected->imu[i].accel);
+    }
+    ASSERT_EQ(actual->T_w_b_gt.has_value(), expected->T_w_b_gt.has_value());
+    if (expected->T_w_b_gt) {
+      EXPECT_EQ(actual->T_w_b_gt->t, expected->T_w_b_gt->t);
+    }
+  }
+  EXPECT_FALSE(bag.next().has_value());
+}
+
+TEST(BagSource, ServesTheFramesOfTheFolderItWasWrittenFrom) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_frames");
+  const fs::path file = dir / "street.bag";
+  writeViodeBag(sequence, file, "lz4");
+  io::DatasetSourceOptions options;
+  options.first_frame = 3;
+  options.max_frames = 50;
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, options);
+  const auto bag = openBagSource(file, sequence, bagTopicsPreset("viode"), options);
+  EXPECT_EQ(bag->camera0().fx, folder->camera0().fx);
+  EXPECT_EQ(bag->imu()->gyroscope_noise_density, folder->imu()->gyroscope_noise_density);
+  expectSameFrames(*folder, *bag);
+}
+
+TEST(BagSource, DeterministicStereoInertialRunEqualsTheFoldersBitForBit) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_run");
+  const fs::path file = dir / "street.bag";
+  writeViodeBag(sequence, file, "none");
+  const io::DatasetSourceOptions options;
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, options);
+  const auto bag = openBagSource(file, sequence / "mav0", bagTopicsPreset("viode"), options);
+  const Trajectory expected = runDeterministic(*folder, system::SensorMode::kStereoInertial);
+  const Trajectory actual = runDeterministic(*bag, system::SensorMode::kStereoInertial);
+  ASSERT_GT(expected.size(), 50u);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    ASSERT_EQ(actual[i].t_ns, expected[i].t_ns);
+    ASSERT_EQ(actual[i].T_w_x.t, expected[i].T_w_x.t) << "frame " << i;
+    ASSERT_EQ(actual[i].T_w_x.q.coeffs(), expected[i].T_w_x.q.coeffs()) << "frame " << i;
+  }
+}
+
+TEST(BagSource, ErrorsNameWhatIsMissing) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_errors");
+  const fs::path file = dir / "street.bag";
+  writeViodeBag(sequence, file, "none");
+  test::expectError([&] { openBagSource(file, dir.path(), BagTopics{}, {}); },
+                    {dir.path().string(), "no cam0/sensor.yaml"});
+  BagTopics topics;
+  topics.imu = "/imu";
+  test::expectError([&] { openBagSource(file, sequence, topics, {}); },
+                    {file.string(), "no topic '/imu'", "/imu0"});
+  test::expectError<OptionError>([&] { bagTopicsPreset("openloris"); }, {"--topics", "openloris"});
+}
+
+}  // namespace
+}  // namespace superdyna::bag
