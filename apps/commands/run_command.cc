@@ -22,6 +22,7 @@
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
 #ifdef SUPERDYNA_WITH_ROSBAG
+#include "superdyna/bag/bag_segmenter.h"
 #include "superdyna/bag/bag_source.h"
 #endif
 #include "superdyna/io/trajectory_io.h"
@@ -510,6 +511,15 @@ class RunCommand : public Command {
 #endif
   }
 
+  /// The segmenter of the options; for a bag, the dataset backend reads its segmentation topics.
+  std::unique_ptr<semantics::Segmenter> openSegmenter(
+      const semantics::SegmenterOptions& options) const {
+#ifdef SUPERDYNA_WITH_ROSBAG
+    if (kind_ == "rosbag") return bag::makeBagSegmenter(options, path_, *bag_calibration_);
+#endif
+    return semantics::makeSegmenter(options, path_);
+  }
+
   /// The dataset is the user's data: never write a result over one of its files.
   void refuseOutputInsideDataset(const fs::path& file, const std::string& option) const {
     const fs::path output = fs::weakly_canonical(fs::absolute(file));
@@ -678,8 +688,7 @@ class RunCommand : public Command {
     const std::unique_ptr<io::DatasetSource> source = openSource(source_options);
     for (const std::string& warning : source->warnings())
       fmt::print("warning: {}\n", warning);
-    std::unique_ptr<semantics::Segmenter> segmenter =
-        semantics::makeSegmenter(options.semantics, path_);
+    std::unique_ptr<semantics::Segmenter> segmenter = openSegmenter(options.semantics);
     const std::string segmentation = segmenter ? segmenter->description() : "none";
     system::System slam(options, source->camera0(), source->camera1(), source->imu(),
                         std::move(segmenter));

@@ -412,8 +412,14 @@ std::optional<int> instanceClassId(const std::string& name, const InputLocation&
                                       name));
 }
 
-/// mav0/instances.csv: "id,class,..." per instance (the simulator adds moving and lifetime).
-/// Unlabelled instances are left out: no mask pixel may hold them.
+template <typename T>
+std::optional<TimeRange> rangeOf(const std::vector<T>& samples) {
+  if (samples.empty()) return std::nullopt;
+  return TimeRange{samples.front().t_ns, samples.back().t_ns};
+}
+
+}  // namespace
+
 std::map<int, int> readInstanceClasses(const fs::path& csv) {
   std::map<int, int> classes;
   std::set<int> ids;
@@ -431,14 +437,6 @@ std::map<int, int> readInstanceClasses(const fs::path& csv) {
   }
   return classes;
 }
-
-template <typename T>
-std::optional<TimeRange> rangeOf(const std::vector<T>& samples) {
-  if (samples.empty()) return std::nullopt;
-  return TimeRange{samples.front().t_ns, samples.back().t_ns};
-}
-
-}  // namespace
 
 EurocDataset EurocDataset::open(const fs::path& path) {
   EurocDataset dataset;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "superdyna/bag/bag_segmenter.h"
 #include "superdyna/bag/sequence_bag_writer.h"
 #include "superdyna/core/error.h"
 #include "superdyna/system/system.h"
@@ -17,18 +18,39 @@ namespace {
 namespace fs = std::filesystem;
 
 const fs::path& streetSequence() {
-  return test::generatedSequence(
-      "bag_source_street",
-      test::flightOptions(4.0, sim::SceneType::kStreet, sim::DynamicLevel::kMid, 21));
+  sim::SimulationOptions options =
+      test::flightOptions(4.0, sim::SceneType::kStreet, sim::DynamicLevel::kMid, 21);
+  options.semantic_color = true;
+  return test::generatedSequence("bag_source_street", options);
 }
 
-Trajectory runDeterministic(io::DatasetSource& source, system::SensorMode mode) {
+Trajectory runDeterministic(io::DatasetSource& source, system::SensorMode mode,
+                            std::unique_ptr<semantics::Segmenter> segmenter = nullptr) {
   system::SystemOptions options;
   options.mode = mode;
   options.deterministic = true;
-  system::System slam(options, source.camera0(), source.camera1(), source.imu());
+  if (segmenter) options.tracker.dynamic.mode = dynamic::DynamicMode::kSemanticGeometric;
+  system::System slam(options, source.camera0(), source.camera1(), source.imu(),
+                      std::move(segmenter));
   slam.run(source, {});
   return slam.trajectory();
+}
+
+void expectSameTrajectory(const Trajectory& actual, const Trajectory& expected) {
+  ASSERT_GT(expected.size(), 50u);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    ASSERT_EQ(actual[i].t_ns, expected[i].t_ns);
+    ASSERT_EQ(actual[i].T_w_x.t, expected[i].T_w_x.t) << "frame " << i;
+    ASSERT_EQ(actual[i].T_w_x.q.coeffs(), expected[i].T_w_x.q.coeffs()) << "frame " << i;
+  }
+}
+
+semantics::SegmenterOptions datasetSegmentation(const std::string& format) {
+  semantics::SegmenterOptions options;
+  options.segmenter = "dataset";
+  options.dataset_format = format;
+  return options;
 }
 
 void expectSameFrames(io::DatasetSource& folder, io::DatasetSource& bag) {
@@ -79,13 +101,45 @@ TEST(BagSource, DeterministicStereoInertialRunEqualsTheFoldersBitForBit) {
   const auto bag = openBagSource(file, sequence / "mav0", bagTopicsPreset("viode"), options);
   const Trajectory expected = runDeterministic(*folder, system::SensorMode::kStereoInertial);
   const Trajectory actual = runDeterministic(*bag, system::SensorMode::kStereoInertial);
-  ASSERT_GT(expected.size(), 50u);
-  ASSERT_EQ(actual.size(), expected.size());
-  for (std::size_t i = 0; i < expected.size(); ++i) {
-    ASSERT_EQ(actual[i].t_ns, expected[i].t_ns);
-    ASSERT_EQ(actual[i].T_w_x.t, expected[i].T_w_x.t) << "frame " << i;
-    ASSERT_EQ(actual[i].T_w_x.q.coeffs(), expected[i].T_w_x.q.coeffs()) << "frame " << i;
+  expectSameTrajectory(actual, expected);
+}
+
+TEST(BagSource, SegmentationTopicsGiveTheFoldersInstanceMasks) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_segmentation");
+  const fs::path file = dir / "street.bag";
+  writeViodeBag(sequence, file, "none");
+  const auto from_bag = makeBagSegmenter(datasetSegmentation("color"), file, sequence);
+  const auto from_masks = semantics::makeSegmenter(datasetSegmentation("masks"), sequence);
+  ASSERT_TRUE(from_bag->idsNameObjects());
+  const auto source = io::openDataset(io::DatasetKind::kEuroc, sequence, {});
+  int frames = 0, differing = 0, objects = 0;
+  while (const auto frame = source->next()) {
+    for (int camera = 0; camera < 2; ++camera) {
+      const cv::Mat& image = camera == 0 ? frame->image0 : frame->image1;
+      const semantics::Segmentation a = from_bag->segment(image, frame->t_ns, camera);
+      const semantics::Segmentation b = from_masks->segment(image, frame->t_ns, camera);
+      differing += cv::countNonZero(a.ids != b.ids);
+      objects += static_cast<int>(a.instances.size());
+      EXPECT_EQ(a.instances.size(), b.instances.size());
+    }
+    ++frames;
   }
+  EXPECT_GT(frames, 50);
+  EXPECT_GT(objects, frames);  // movers and parked cars in view
+  EXPECT_EQ(differing, 0);
+
+  // The same labels through the whole pipeline, with the moving-object test: the same trajectory.
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, {});
+  const auto bag = openBagSource(file, sequence, bagTopicsPreset("viode"), {});
+  expectSameTrajectory(
+      runDeterministic(*bag, system::SensorMode::kStereoInertial,
+                       makeBagSegmenter(datasetSegmentation("color"), file, sequence)),
+      runDeterministic(*folder, system::SensorMode::kStereoInertial,
+                       semantics::makeSegmenter(datasetSegmentation("masks"), sequence)));
+  test::expectError<OptionError>(
+      [&] { makeBagSegmenter(datasetSegmentation("masks"), file, sequence); },
+      {"semantics.dataset_format", "use color"});
 }
 
 TEST(BagSource, ErrorsNameWhatIsMissing) {

@@ -38,6 +38,10 @@
 
 namespace superdyna::io {
 
+/// Instance id -> class of a simulator instances.csv ("id,class,..." rows; unlabelled instances
+/// left out). InputError naming file, line and field.
+std::map<int, int> readInstanceClasses(const std::filesystem::path& csv);
+
 class EurocDataset {
  public:
   /// Opens a sequence: `path` is the sequence folder containing mav0/, or mav0 itself.
