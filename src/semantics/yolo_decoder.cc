@@ -83,17 +83,21 @@ std::vector<float> letterboxedInput(const cv::Mat& image, const Letterbox& lette
   }
   cv::Mat canvas(letterbox.input, CV_8UC3, cv::Scalar(114, 114, 114));
   scaled.copyTo(canvas(cv::Rect(cv::Point(letterbox.left, letterbox.top), letterbox.scaled)));
-  const std::size_t plane = static_cast<std::size_t>(canvas.rows) * canvas.cols;
-  std::vector<float> input(3 * plane);
-  for (int r = 0; r < canvas.rows; ++r) {
-    const auto* row = canvas.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < canvas.cols; ++c) {
-      const std::size_t i = static_cast<std::size_t>(r) * canvas.cols + c;
+  return planarFloats(canvas, 255.0f);
+}
+
+std::vector<float> planarFloats(const cv::Mat& image, float divisor) {
+  const std::size_t plane = static_cast<std::size_t>(image.rows) * image.cols;
+  std::vector<float> planar(3 * plane);
+  for (int r = 0; r < image.rows; ++r) {
+    const auto* row = image.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < image.cols; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r) * image.cols + c;
       for (int k = 0; k < 3; ++k)
-        input[k * plane + i] = row[c][k] / 255.0f;
+        planar[k * plane + i] = row[c][k] / divisor;
     }
   }
-  return input;
+  return planar;
 }
 
 std::vector<YoloDetection> decodeDetections(const float* output0, int channels, int anchors,

@@ -69,17 +69,7 @@ std::vector<float> yoloxInput(const cv::Mat& image, const Letterbox& letterbox) 
   cv::resize(bgr, scaled, letterbox.scaled, 0, 0, cv::INTER_LINEAR);
   cv::Mat canvas(letterbox.input, CV_8UC3, cv::Scalar(114, 114, 114));
   scaled.copyTo(canvas(cv::Rect(cv::Point(0, 0), letterbox.scaled)));
-  const std::size_t plane = static_cast<std::size_t>(canvas.rows) * canvas.cols;
-  std::vector<float> input(3 * plane);
-  for (int r = 0; r < canvas.rows; ++r) {
-    const auto* row = canvas.ptr<cv::Vec3b>(r);
-    for (int c = 0; c < canvas.cols; ++c) {
-      const std::size_t i = static_cast<std::size_t>(r) * canvas.cols + c;
-      for (int k = 0; k < 3; ++k)
-        input[k * plane + i] = row[c][k];
-    }
-  }
-  return input;
+  return planarFloats(canvas, 1.0f);
 }
 
 int yoloxAnchorCount(cv::Size input) {

@@ -20,6 +20,8 @@ import sys
 
 import numpy as np
 
+from reference_file import write_or_check
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 DATA = os.path.join(HERE, "sam_reference_data.txt")
 
@@ -215,18 +217,7 @@ def render():
 
 
 def main():
-    text = render()
-    if len(sys.argv) > 1 and sys.argv[1] == "--check":
-        with open(DATA) as f:
-            if f.read() != text:
-                print(f"{DATA} differs from what the reference computes")
-                return 1
-        print(f"{DATA} reproduced")
-        return 0
-    with open(DATA, "w") as f:
-        f.write(text)
-    print(f"wrote {DATA}")
-    return 0
+    return write_or_check(DATA, render(), sys.argv)
 
 
 if __name__ == "__main__":

@@ -39,6 +39,9 @@ Letterbox letterboxFor(cv::Size image, cv::Size input);
 /// float RGB in [0, 1], planar [1, 3, H, W].
 std::vector<float> letterboxedInput(const cv::Mat& image, const Letterbox& letterbox);
 
+/// A CV_8UC3 image as planar floats [3, H, W] in its own channel order, each value / `divisor`.
+std::vector<float> planarFloats(const cv::Mat& image, float divisor);
+
 /// One detection in input pixels.
 struct YoloDetection {
   int anchor = 0;
