@@ -26,6 +26,23 @@ fs::path sensorFolder(const fs::path& calibration) {
                    "EuRoC-style folder of sensor.yaml files)");
 }
 
+/// The source reads each topic in the bag's order: header stamps out of that order are an error
+/// rather than frames silently dropped or IMU intervals cut wrongly.
+template <typename T, typename Stamp>
+void requireStampOrder(const std::vector<T>& items, Stamp stamp, const fs::path& bag,
+                       const std::string& topic) {
+  const auto later = std::adjacent_find(
+      items.begin(), items.end(), [&](const T& a, const T& b) { return stamp(b) < stamp(a); });
+  if (later != items.end()) {
+    throw InputError(
+        InputLocation{bag},
+        fmt::format("topic {}: message {} is stamped {} ns, after the next one ({} ns); "
+                    "bags whose header stamps are out of the recorded order are not "
+                    "supported",
+                    topic, later - items.begin(), stamp(*later), stamp(*(later + 1))));
+  }
+}
+
 bool hasTopic(const RosbagReader& reader, const std::string& name) {
   return std::any_of(reader.topics().begin(), reader.topics().end(),
                      [&](const BagTopic& topic) { return topic.name == name; });
@@ -40,9 +57,14 @@ class BagSource : public io::DatasetSource {
       throw InputError(InputLocation{bag}, "instance masks are not read from bags yet");
     }
     readCalibration(sensorFolder(calibration));
-    if (options.inertial) imu_samples_ = reader_.imuSamples(topics.imu);
+    const auto stamp_of = [](const auto& item) { return item.t_ns; };
+    if (options.inertial) {
+      imu_samples_ = reader_.imuSamples(topics.imu);
+      requireStampOrder(imu_samples_, stamp_of, bag, topics.imu);
+    }
     if (!topics.ground_truth.empty() && hasTopic(reader_, topics.ground_truth)) {
       ground_truth_ = reader_.odometry(topics.ground_truth);
+      requireStampOrder(ground_truth_, stamp_of, bag, topics.ground_truth);
     }
     selectFrames();
     left_ = std::make_unique<BagImageStream>(reader_, topics.cam0);
@@ -93,9 +115,12 @@ class BagSource : public io::DatasetSource {
   /// The served frame times: left stamps (with a right image of the same stamp in stereo, and
   /// inside the IMU's range with IMU), then first_frame and max_frames.
   void selectFrames() {
+    const auto itself = [](TimeNs t) { return t; };
     std::vector<TimeNs> left = reader_.imageStamps(topics_.cam0);
+    requireStampOrder(left, itself, reader_.path(), topics_.cam0);
     if (options_.stereo) {
       const std::vector<TimeNs> right = reader_.imageStamps(topics_.cam1);
+      requireStampOrder(right, itself, reader_.path(), topics_.cam1);
       std::vector<TimeNs> paired;
       std::set_intersection(left.begin(), left.end(), right.begin(), right.end(),
                             std::back_inserter(paired));

@@ -128,8 +128,8 @@ void BagWriter::writeImage(const std::string& topic, TimeNs t_ns, const cv::Mat&
 }
 
 void BagWriter::writeImu(const std::string& topic, const sensors::ImuSample& sample,
-                         const std::string& frame_id) {
-  impl_->bag.write(topic, rosTime(sample.t_ns), imuMessage(sample, frame_id));
+                         const std::string& frame_id, std::optional<TimeNs> record_t_ns) {
+  impl_->bag.write(topic, rosTime(record_t_ns.value_or(sample.t_ns)), imuMessage(sample, frame_id));
   ++counts_[topic];
 }
 

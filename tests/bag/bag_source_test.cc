@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "superdyna/bag/bag_segmenter.h"
+#include "superdyna/bag/bag_writer.h"
 #include "superdyna/bag/sequence_bag_writer.h"
 #include "superdyna/core/error.h"
 #include "superdyna/system/system.h"
@@ -154,6 +155,31 @@ TEST(BagSource, ErrorsNameWhatIsMissing) {
   test::expectError([&] { openBagSource(file, sequence, topics, {}); },
                     {file.string(), "no topic '/imu'", "/imu0"});
   test::expectError<OptionError>([&] { bagTopicsPreset("openloris"); }, {"--topics", "openloris"});
+}
+
+TEST(BagSource, HeaderStampsOutOfTheBagsOrderAreAnError) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_order");
+  const fs::path file = dir / "unordered.bag";
+  {
+    BagWriter out(file, "none");
+    const cv::Mat image(480, 752, CV_8UC1, cv::Scalar(90));
+    for (const TimeNs t : {TimeNs{2000000000}, TimeNs{2050000000}}) {
+      out.writeImage("/cam0/image_raw", t, image, "cam0");
+      out.writeImage("/cam1/image_raw", t, image, "cam1");
+    }
+    // Recorded in this order (record times 1, 2, 3 ms after the first) with stamps out of order.
+    sensors::ImuSample sample;
+    TimeNs recorded = 1990000000;
+    for (const TimeNs t : {TimeNs{1990000000}, TimeNs{2060000000}, TimeNs{2010000000}}) {
+      sample.t_ns = t;
+      out.writeImu("/imu0", sample, "imu0", recorded += kNsPerMillisecond);
+    }
+    out.close();
+  }
+  test::expectError([&] { openBagSource(file, sequence, BagTopics{}, {}); },
+                    {file.string(), "topic /imu0: message 1 is stamped 2060000000 ns",
+                     "out of the recorded order"});
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #pragma once
 // Writing ROS 1 bags with ROS's rosbag_storage, message by message, from the project's types
 // (sensor_msgs/Image from a cv::Mat, sensor_msgs/Imu, nav_msgs/Odometry of a ground-truth state).
-// Header stamps and record times are the given times. The bag is written to FILE.partial and
+// Header stamps are the given times, and so are the record times unless a record time is given
+// (a recorder stores the time a message arrived). The bag is written to FILE.partial and
 // renamed when close() succeeds, so an interrupted write leaves no bag that looks complete.
 
 #include <cstddef>
@@ -9,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 
 #include "superdyna/core/time.h"
@@ -30,7 +32,7 @@ class BagWriter {
   void writeImage(const std::string& topic, TimeNs t_ns, const cv::Mat& image,
                   const std::string& frame_id);
   void writeImu(const std::string& topic, const sensors::ImuSample& sample,
-                const std::string& frame_id);
+                const std::string& frame_id, std::optional<TimeNs> record_t_ns = std::nullopt);
   /// nav_msgs/Odometry: the body's pose in the world frame, its world-frame velocity as twist.
   void writeOdometry(const std::string& topic, const sensors::GroundTruthState& state);
   /// Finishes the bag and moves it to its name.
