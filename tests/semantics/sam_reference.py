@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from reference_file import write_or_check
+from reference_file import iou, write_or_check
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DATA = os.path.join(HERE, "sam_reference_data.txt")
@@ -75,15 +75,6 @@ def make_yolox_output(rng):
         out[anchor, 5:] = np.minimum(out[anchor, 5:], 0.2)
         out[anchor, 5 + cls] = prob
     return out
-
-
-def iou(a, b):
-    w = min(a[2], b[2]) - max(a[0], b[0])
-    h = min(a[3], b[3]) - max(a[1], b[1])
-    inter = max(0.0, w) * max(0.0, h)
-    area = lambda r: max(0.0, r[2] - r[0]) * max(0.0, r[3] - r[1])
-    union = area(a) + area(b) - inter
-    return inter / union if union > 0 else 0.0
 
 
 def yolox_detections(out):
