@@ -27,9 +27,9 @@
 #endif
 #include "superdyna/io/trajectory_io.h"
 #include "superdyna/map/map_file.h"
-#include "superdyna/semantics/overlay.h"
 #include "superdyna/system/dynamic_log.h"
 #include "superdyna/system/frame_log.h"
+#include "superdyna/system/frame_overlays.h"
 #include "superdyna/system/system.h"
 
 namespace superdyna::apps {
@@ -89,76 +89,30 @@ void printSegmentation(const system::TimingSummary& t) {
       mean(t.propagate_ms, t.propagated_frames), t.meanMs(t.segment_ms + t.propagate_ms));
 }
 
-/// Writes every `every`-th frame's overlay into `dir`: the image, the instance masks and the
-/// keypoints by class (the paper's Fig. 7b); with the moving-object test on, only the masks of the
-/// objects found moving and the keypoints kept (green) or dropped (red) by it (Figs. 7c and 9).
-/// The front end remembers a frame, its tracking result draws it.
+/// Writes every `every`-th frame's overlay (system::FrameOverlays) into `dir` as a PNG file.
 class OverlayWriter {
  public:
   OverlayWriter(fs::path dir, int every, bool moving_objects)
-      : dir_(std::move(dir)), every_(every), moving_objects_(moving_objects) {
+      : dir_(std::move(dir)), overlays_(every, moving_objects) {
     fs::create_directories(dir_);
   }
 
   void remember(const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
-    if (bundle.index % static_cast<std::size_t>(every_) != 0) return;
-    Pending pending{
-        bundle.index, bundle.image0, bundle.masks.value_or(sensors::InstanceMasks{}), {}};
-    for (const features::Keypoint& k : frame.features.keypoints)
-      pending.points.push_back({{k.pixel.x(), k.pixel.y()}, k.class_id, std::nullopt});
-    const std::lock_guard lock(mutex_);  // the concurrent front end runs in its own thread
-    pending_.emplace(bundle.t_ns, std::move(pending));
+    overlays_.remember(bundle, frame);
   }
 
   void write(const tracking::TrackingResult& result) {
-    std::optional<Pending> pending;
-    {
-      const std::lock_guard lock(mutex_);
-      const auto found = pending_.find(result.t_ns);
-      if (found == pending_.end()) return;
-      pending = std::move(found->second);
-      pending_.erase(found);
-    }
-    cv::Mat ids = pending->masks.cam0;
-    if (moving_objects_) {
-      ids = movingOnly(pending->masks.cam0, result.moving);
-      const std::vector<char>& drop = result.moving.drop;
-      for (std::size_t i = 0; i < pending->points.size() && i < drop.size(); ++i)
-        pending->points[i].colour = drop[i] ? cv::Scalar(0, 0, 255) : cv::Scalar(0, 200, 0);
-    }
-    const fs::path file = dir_ / fmt::format("overlay_{:06d}.png", pending->index);
-    if (!cv::imwrite(file.string(), semantics::drawOverlay(pending->image, ids, pending->masks,
-                                                           pending->points))) {
+    const std::optional<system::FrameOverlay> overlay = overlays_.draw(result);
+    if (!overlay) return;
+    const fs::path file = dir_ / fmt::format("overlay_{:06d}.png", overlay->index);
+    if (!cv::imwrite(file.string(), overlay->image)) {
       throw InputError(InputLocation{file}, "cannot write the overlay image");
     }
   }
 
  private:
-  struct Pending {
-    std::size_t index = 0;
-    cv::Mat image;
-    sensors::InstanceMasks masks;
-    std::vector<semantics::LabelledPoint> points;
-  };
-
-  /// The instance-id image with only the instances the test found moving (the final mask).
-  static cv::Mat movingOnly(const cv::Mat& ids, const dynamic::MovingObjectReport& report) {
-    if (ids.empty()) return ids;
-    std::set<int> moving;
-    for (const dynamic::ObjectDecision& object : report.objects)
-      if (object.decision == dynamic::ObjectState::kMoving) moving.insert(object.instance_id);
-    cv::Mat out = ids.clone();
-    out.forEach<std::uint16_t>([&](std::uint16_t& id, const int*) {
-      if (id != 0 && !moving.count(id)) id = 0;
-    });
-    return out;
-  }
-
   fs::path dir_;
-  int every_;
-  bool moving_objects_;
-  std::mutex mutex_;
-  std::map<TimeNs, Pending> pending_;
+  system::FrameOverlays overlays_;
 };
 
 void printMatchCounts(const system::System& slam) {
@@ -410,8 +364,14 @@ class RunCommand : public Command {
         ->check(CLI::ExistingDirectory);
     sub_->add_option("--topics", bag_topics_,
                      "rosbag: topic preset: viode or euroc (/cam0/image_raw, /cam1/image_raw, "
-                     "/imu0; ground truth from /odometry when the bag has it)")
+                     "/imu0; ground truth from /odometry when the bag has it) or openloris "
+                     "(/d400/color/image_raw, /d400/accel/sample and /d400/gyro/sample merged at "
+                     "the gyroscope's stamps; monocular)")
         ->capture_default_str();
+    sub_->add_option("--ground-truth", bag_ground_truth_,
+                     "rosbag: ground-truth file of the body (TUM, EuRoC CSV, OpenLORIS), instead "
+                     "of the bag's ground-truth topic")
+        ->check(CLI::ExistingFile);
     sub_->add_option("--mode", mode_,
                      "Sensor mode: stereo | stereo-inertial | mono | mono-inertial")
         ->capture_default_str();
@@ -503,7 +463,8 @@ class RunCommand : public Command {
                         "--dataset rosbag needs the folder of the bag's "
                         "sensor.yaml files (bags carry no calibration)");
     }
-    return bag::openBagSource(path_, *bag_calibration_, bag::bagTopicsPreset(bag_topics_), options);
+    return bag::openBagSource(path_, *bag_calibration_, bag::bagTopicsPreset(bag_topics_), options,
+                              bag_ground_truth_);
 #else
     throw OptionError("--dataset",
                       "this build has no ROS bag support: install Debian's librosbag-storage-dev, "
@@ -792,6 +753,7 @@ class RunCommand : public Command {
   CLI::App* sub_ = nullptr;
   std::string kind_ = "euroc";
   std::optional<fs::path> bag_calibration_;
+  fs::path bag_ground_truth_;
   std::string bag_topics_ = "viode";
   fs::path path_;
   std::string mode_ = "stereo";

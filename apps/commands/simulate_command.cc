@@ -141,9 +141,16 @@ class SimulateCommand : public Command {
                      "textures")
         ->check(CLI::ExistingDirectory);
     sub_->add_option("--rosbag", rosbag_,
-                     "Also write the sequence as a ROS 1 bag in VIODE's layout (/cam0/image_raw, "
-                     "/cam1/image_raw, /cam0/segmentation and /cam1/segmentation with "
-                     "--semantic-color, /imu0, /odometry); the calibration stays in the folder");
+                     "Also write the sequence as a ROS 1 bag (lz4) in the layout of "
+                     "--rosbag-layout; the calibration stays in the folder");
+    sub_->add_option("--rosbag-layout", rosbag_layout_,
+                     "viode: /cam0/image_raw, /cam1/image_raw, /cam0/segmentation and "
+                     "/cam1/segmentation with --semantic-color, /imu0, /odometry; openloris: "
+                     "OpenLORIS-Scene's D435i, /d400/color/image_raw (rgb8, left camera), "
+                     "/d400/gyro/sample (200 Hz) and /d400/accel/sample (62.5 Hz) published apart, "
+                     "no ground-truth topic (use the folder's)")
+        ->check(CLI::IsMember({"viode", "openloris"}))
+        ->capture_default_str();
     sub_->add_flag("--semantic-color", options_.semantic_color,
                    "Also write VIODE-like colour segmentation images (camX/segmentation)");
     sub_->add_option("--landmarks", options_.landmark_count,
@@ -389,11 +396,13 @@ class SimulateCommand : public Command {
 
   void writeBag() const {
 #ifdef SUPERDYNA_WITH_ROSBAG
-    const auto counts = bag::writeViodeBag(options_.output_dir, *rosbag_, "lz4");
+    const auto counts = rosbag_layout_ == "openloris"
+                            ? bag::writeOpenlorisBag(options_.output_dir, *rosbag_, "lz4")
+                            : bag::writeViodeBag(options_.output_dir, *rosbag_, "lz4");
     std::string listed;
     for (const auto& [topic, messages] : counts)
       listed += fmt::format("{}{} {}", listed.empty() ? "" : ", ", topic, messages);
-    fmt::print("  -> {} (VIODE layout, lz4: {})\n", rosbag_->string(), listed);
+    fmt::print("  -> {} ({} layout, lz4: {})\n", rosbag_->string(), rosbag_layout_, listed);
 #endif
   }
 
@@ -433,6 +442,7 @@ class SimulateCommand : public Command {
   std::vector<double> pattern_distance_;
   std::optional<fs::path> texture_dir_;
   std::optional<fs::path> rosbag_;
+  std::string rosbag_layout_ = "viode";
   std::optional<fs::path> world_of_;
   std::string noise_ = "on";
   std::string distortion_ = "off";

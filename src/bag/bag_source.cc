@@ -8,6 +8,8 @@
 #include "superdyna/bag/rosbag_reader.h"
 #include "superdyna/core/error.h"
 #include "superdyna/io/calibration.h"
+#include "superdyna/io/trajectory_io.h"
+#include "superdyna/sensors/imu_streams.h"
 
 namespace superdyna::bag {
 
@@ -16,15 +18,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr TimeNs kGroundTruthToleranceNs = kNsPerMillisecond;
-
-/// The folder holding cam0/sensor.yaml: `calibration` or its mav0/.
-fs::path sensorFolder(const fs::path& calibration) {
-  if (fs::exists(calibration / "cam0" / "sensor.yaml")) return calibration;
-  if (fs::exists(calibration / "mav0" / "cam0" / "sensor.yaml")) return calibration / "mav0";
-  throw InputError(InputLocation{calibration},
-                   "no cam0/sensor.yaml here or in mav0/ (the calibration of a bag is an "
-                   "EuRoC-style folder of sensor.yaml files)");
-}
 
 /// The source reads each topic in the bag's order: header stamps out of that order are an error
 /// rather than frames silently dropped or IMU intervals cut wrongly.
@@ -51,21 +44,20 @@ bool hasTopic(const RosbagReader& reader, const std::string& name) {
 class BagSource : public io::DatasetSource {
  public:
   BagSource(const fs::path& bag, const fs::path& calibration, const BagTopics& topics,
-            const io::DatasetSourceOptions& options)
+            const io::DatasetSourceOptions& options, const fs::path& ground_truth_file)
       : reader_(RosbagReader::open(bag)), topics_(topics), options_(options) {
     if (options.instance_masks) {
       throw InputError(InputLocation{bag}, "instance masks are not read from bags yet");
     }
-    readCalibration(sensorFolder(calibration));
-    const auto stamp_of = [](const auto& item) { return item.t_ns; };
-    if (options.inertial) {
-      imu_samples_ = reader_.imuSamples(topics.imu);
-      requireStampOrder(imu_samples_, stamp_of, bag, topics.imu);
+    if (options.stereo && topics.cam1.empty()) {
+      throw OptionError("--topics", "the topics name no second camera: run a mono mode");
     }
-    if (!topics.ground_truth.empty() && hasTopic(reader_, topics.ground_truth)) {
-      ground_truth_ = reader_.odometry(topics.ground_truth);
-      requireStampOrder(ground_truth_, stamp_of, bag, topics.ground_truth);
-    }
+    io::SensorRig rig = io::readSensorFolder(calibration, options.stereo, options.inertial);
+    camera0_ = std::move(rig.camera0);
+    camera1_ = std::move(rig.camera1);
+    imu_ = std::move(rig.imu);
+    if (options.inertial) readImu();
+    readGroundTruth(ground_truth_file);
     selectFrames();
     left_ = std::make_unique<BagImageStream>(reader_, topics.cam0);
     if (options.stereo) right_ = std::make_unique<BagImageStream>(reader_, topics.cam1);
@@ -106,10 +98,46 @@ class BagSource : public io::DatasetSource {
   }
 
  private:
-  void readCalibration(const fs::path& folder) {
-    camera0_ = io::readCameraCalibration(folder / "cam0" / "sensor.yaml");
-    if (options_.stereo) camera1_ = io::readCameraCalibration(folder / "cam1" / "sensor.yaml");
-    if (options_.inertial) imu_ = io::readImuCalibration(folder / "imu0" / "sensor.yaml");
+  /// One IMU topic, or an accelerometer and a gyroscope topic merged at the gyroscope's stamps.
+  void readImu() {
+    const auto stamp_of = [](const sensors::ImuSample& sample) { return sample.t_ns; };
+    if (!topics_.imu.empty()) {
+      imu_samples_ = reader_.imuSamples(topics_.imu);
+      requireStampOrder(imu_samples_, stamp_of, reader_.path(), topics_.imu);
+      return;
+    }
+    if (topics_.accel.empty() || topics_.gyro.empty()) {
+      throw OptionError("--topics", "an inertial mode needs an IMU topic or accel and gyro topics");
+    }
+    const std::vector<sensors::ImuSample> accel = reader_.imuSamples(topics_.accel);
+    const std::vector<sensors::ImuSample> gyro = reader_.imuSamples(topics_.gyro);
+    requireStampOrder(accel, stamp_of, reader_.path(), topics_.accel);
+    requireStampOrder(gyro, stamp_of, reader_.path(), topics_.gyro);
+    sensors::MergedImu merged = sensors::mergeImuStreams(accel, gyro);
+    if (merged.outside + merged.in_gaps > 0) {
+      warnings_.push_back(fmt::format(
+          "{}: {} of {} {} samples left out of the merged IMU stream ({} outside the {} samples' "
+          "time range, {} in gaps of more than 100 ms between them)",
+          reader_.path().string(), merged.outside + merged.in_gaps, gyro.size(), topics_.gyro,
+          merged.outside, topics_.accel, merged.in_gaps));
+    }
+    imu_samples_ = std::move(merged.samples);
+  }
+
+  /// The ground-truth file when given, else the ground-truth topic when the bag has it.
+  void readGroundTruth(const fs::path& file) {
+    if (!file.empty()) {
+      for (const StampedPose& pose : io::readTrajectory(file))
+        ground_truth_.push_back({.t_ns = pose.t_ns, .T_w_b = pose.T_w_x});
+      requireStampOrder(
+          ground_truth_, [](const auto& state) { return state.t_ns; }, file, "ground truth");
+      return;
+    }
+    if (topics_.ground_truth.empty() || !hasTopic(reader_, topics_.ground_truth)) return;
+    ground_truth_ = reader_.odometry(topics_.ground_truth);
+    requireStampOrder(
+        ground_truth_, [](const auto& state) { return state.t_ns; }, reader_.path(),
+        topics_.ground_truth);
   }
 
   /// The served frame times: left stamps (with a right image of the same stamp in stereo, and
@@ -197,13 +225,22 @@ class BagSource : public io::DatasetSource {
 
 BagTopics bagTopicsPreset(const std::string& name) {
   if (name == "viode" || name == "euroc") return BagTopics{};
-  throw OptionError("--topics", fmt::format("expected viode or euroc, got '{}'", name));
+  if (name == "openloris") {
+    return BagTopics{.cam0 = "/d400/color/image_raw",
+                     .cam1 = "",
+                     .imu = "",
+                     .accel = "/d400/accel/sample",
+                     .gyro = "/d400/gyro/sample",
+                     .ground_truth = ""};
+  }
+  throw OptionError("--topics", fmt::format("expected viode, euroc or openloris, got '{}'", name));
 }
 
 std::unique_ptr<io::DatasetSource> openBagSource(const fs::path& bag, const fs::path& calibration,
                                                  const BagTopics& topics,
-                                                 const io::DatasetSourceOptions& options) {
-  return std::make_unique<BagSource>(bag, calibration, topics, options);
+                                                 const io::DatasetSourceOptions& options,
+                                                 const fs::path& ground_truth_file) {
+  return std::make_unique<BagSource>(bag, calibration, topics, options, ground_truth_file);
 }
 
 }  // namespace superdyna::bag

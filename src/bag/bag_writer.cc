@@ -6,6 +6,8 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "superdyna/core/error.h"
 
 namespace superdyna::bag {
@@ -27,12 +29,16 @@ std_msgs::Header header(TimeNs t_ns, const std::string& frame) {
   return h;
 }
 
-sensor_msgs::Image imageMessage(const cv::Mat& image, TimeNs t_ns, const std::string& frame) {
+sensor_msgs::Image imageMessage(const cv::Mat& bgr_or_grey, TimeNs t_ns, const std::string& frame,
+                                ColourOrder order) {
+  cv::Mat image = bgr_or_grey;
+  if (image.channels() == 3 && order == ColourOrder::kRgb)
+    cv::cvtColor(bgr_or_grey, image, cv::COLOR_BGR2RGB);
   sensor_msgs::Image msg;
   msg.header = header(t_ns, frame);
   msg.width = static_cast<std::uint32_t>(image.cols);
   msg.height = static_cast<std::uint32_t>(image.rows);
-  msg.encoding = image.channels() == 1 ? "mono8" : "bgr8";
+  msg.encoding = image.channels() == 1 ? "mono8" : order == ColourOrder::kRgb ? "rgb8" : "bgr8";
   msg.is_bigendian = 0;
   msg.step = static_cast<std::uint32_t>(image.cols * image.elemSize());
   msg.data.resize(static_cast<std::size_t>(msg.step) * msg.height);
@@ -118,12 +124,12 @@ BagWriter::~BagWriter() {
 }
 
 void BagWriter::writeImage(const std::string& topic, TimeNs t_ns, const cv::Mat& image,
-                           const std::string& frame_id) {
+                           const std::string& frame_id, ColourOrder order) {
   if (image.type() != CV_8UC1 && image.type() != CV_8UC3) {
     throw InputError(fmt::format("{}: images must be CV_8UC1 or CV_8UC3, got OpenCV type {}", topic,
                                  image.type()));
   }
-  impl_->bag.write(topic, rosTime(t_ns), imageMessage(image, t_ns, frame_id));
+  impl_->bag.write(topic, rosTime(t_ns), imageMessage(image, t_ns, frame_id, order));
   ++counts_[topic];
 }
 

@@ -212,4 +212,22 @@ cv::Mat decodePngFile(const fs::path& file, int flags) {
   return image;
 }
 
+SensorRig readSensorFolder(const std::filesystem::path& folder, bool stereo, bool inertial) {
+  namespace fs = std::filesystem;
+  fs::path root = folder;
+  if (!fs::exists(root / "cam0" / "sensor.yaml")) {
+    root = folder / "mav0";
+    if (!fs::exists(root / "cam0" / "sensor.yaml")) {
+      throw InputError(InputLocation{folder},
+                       "no cam0/sensor.yaml here or in mav0/ (a calibration folder holds "
+                       "EuRoC-style sensor.yaml files: cam0/, cam1/ for stereo, imu0/ with IMU)");
+    }
+  }
+  SensorRig rig;
+  rig.camera0 = readCameraCalibration(root / "cam0" / "sensor.yaml");
+  if (stereo) rig.camera1 = readCameraCalibration(root / "cam1" / "sensor.yaml");
+  if (inertial) rig.imu = readImuCalibration(root / "imu0" / "sensor.yaml");
+  return rig;
+}
+
 }  // namespace superdyna::io

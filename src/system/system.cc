@@ -453,6 +453,18 @@ std::size_t System::numCrossClassMapPoints() const {
   return tracker_.hasMap() ? tracker_.map().numCrossClassMapPoints() : 0;
 }
 
+std::vector<std::pair<Eigen::Vector3d, int>> System::mapPointPositions() const {
+  std::vector<std::pair<Eigen::Vector3d, int>> points;
+  if (!tracker_.hasMap()) return points;
+  const map::Map& map = tracker_.map();
+  for (const map::MapPointId id : map.mapPointIds()) {
+    map.readMapPoint(id, [&](const map::MapPoint& point) {
+      if (!point.bad) points.emplace_back(point.p_w, point.class_id);
+    });
+  }
+  return points;
+}
+
 std::map<int, std::size_t> System::mapPointsPerInstance() const {
   std::map<int, std::size_t> counts;
   if (!tracker_.hasMap()) return counts;

@@ -9,6 +9,7 @@
 #include "superdyna/bag/bag_writer.h"
 #include "superdyna/bag/sequence_bag_writer.h"
 #include "superdyna/core/error.h"
+#include "superdyna/io/euroc_dataset.h"
 #include "superdyna/system/system.h"
 #include "support/generated_sequence.h"
 #include "support/test_support.h"
@@ -154,7 +155,68 @@ TEST(BagSource, ErrorsNameWhatIsMissing) {
   topics.imu = "/imu";
   test::expectError([&] { openBagSource(file, sequence, topics, {}); },
                     {file.string(), "no topic '/imu'", "/imu0"});
-  test::expectError<OptionError>([&] { bagTopicsPreset("openloris"); }, {"--topics", "openloris"});
+  test::expectError<OptionError>([&] { bagTopicsPreset("kalibr"); }, {"--topics", "kalibr"});
+}
+
+TEST(BagSource, OpenlorisLayoutPublishesTheImuApartAndTheSourceMergesItBack) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_openloris");
+  const fs::path file = dir / "openloris.bag";
+  const auto counts = writeOpenlorisBag(sequence, file, "lz4");
+  io::DatasetSourceOptions mono_inertial;
+  mono_inertial.stereo = false;
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, mono_inertial);
+  const std::vector<sensors::ImuSample> imu = io::EurocDataset::open(sequence).imu();
+  EXPECT_EQ(counts.at("/d400/color/image_raw"), folder->size());
+  EXPECT_EQ(counts.at("/d400/gyro/sample"), imu.size());
+  const TimeNs accel_span = imu.back().t_ns - imu.front().t_ns - 2 * kNsPerMillisecond;
+  EXPECT_EQ(counts.at("/d400/accel/sample"),
+            static_cast<std::size_t>(accel_span / (16 * kNsPerMillisecond)) + 1);
+  EXPECT_EQ(counts.count("/odometry"), 0u);
+
+  const fs::path ground_truth = sequence / "mav0" / "state_groundtruth_estimate0" / "data.csv";
+  const auto bag =
+      openBagSource(file, sequence, bagTopicsPreset("openloris"), mono_inertial, ground_truth);
+  EXPECT_FALSE(bag->camera1().has_value());
+  const Trajectory folder_truth = folder->groundTruth();
+  std::map<TimeNs, sensors::FrameBundle> folder_frames;
+  while (auto frame = folder->next())
+    folder_frames.emplace(frame->t_ns, std::move(*frame));
+  std::size_t frames = 0, samples = 0;
+  double accel_error = 0.0;
+  while (const auto actual = bag->next()) {
+    const sensors::FrameBundle& expected = folder_frames.at(actual->t_ns);
+    ++frames;
+    EXPECT_EQ(cv::norm(actual->image0, expected.image0, cv::NORM_INF), 0.0);  // rgb8 -> grey
+    ASSERT_TRUE(actual->T_w_b_gt.has_value());
+    EXPECT_LT((actual->T_w_b_gt->t - expected.T_w_b_gt->t).norm(), 1e-9);
+    if (frames == 1) continue;  // its IMU interval starts before the first served frame
+    ASSERT_EQ(actual->imu.size(), expected.imu.size()) << "frame at " << actual->t_ns;
+    for (std::size_t i = 0; i < expected.imu.size(); ++i) {
+      EXPECT_EQ(actual->imu[i].t_ns, expected.imu[i].t_ns);
+      EXPECT_EQ(actual->imu[i].gyro, expected.imu[i].gyro);
+      accel_error += (actual->imu[i].accel - expected.imu[i].accel).norm();
+      ++samples;
+    }
+  }
+  // Only the first and the last frame, outside the accelerometer's time range, are left out; the
+  // ground truth is the file's over the frames served.
+  EXPECT_EQ(frames + 2, folder_frames.size());
+  EXPECT_EQ(bag->groundTruth().size(),
+            std::count_if(folder_truth.begin(), folder_truth.end(), [&](const StampedPose& p) {
+              return p.t_ns + kNsPerMillisecond >= std::next(folder_frames.begin())->first &&
+                     p.t_ns <= std::prev(folder_frames.end(), 2)->first + kNsPerMillisecond;
+            }));
+  ASSERT_GT(samples, 500u);
+  // Resampled at 62.5 Hz and interpolated back: the motion's acceleration is kept, the sensor
+  // noise (about 0.03 m/s^2 per axis per sample here) is smoothed.
+  EXPECT_LT(accel_error / static_cast<double>(samples), 0.1);
+
+  io::DatasetSourceOptions stereo = mono_inertial;
+  stereo.stereo = true;
+  test::expectError<OptionError>(
+      [&] { openBagSource(file, sequence, bagTopicsPreset("openloris"), stereo); },
+      {"--topics", "no second camera"});
 }
 
 TEST(BagSource, HeaderStampsOutOfTheBagsOrderAreAnError) {

@@ -20,21 +20,29 @@ namespace superdyna::bag {
 /// The topics a bag source reads; an empty name = not read.
 struct BagTopics {
   std::string cam0 = "/cam0/image_raw";
-  std::string cam1 = "/cam1/image_raw";
-  std::string imu = "/imu0";
+  std::string cam1 = "/cam1/image_raw";  ///< "" = a monocular bag.
+  std::string imu = "/imu0";             ///< sensor_msgs/Imu with both vectors.
+  /// Accelerometer and gyroscope published apart (used when `imu` is ""): merged into one stream
+  /// at the gyroscope's stamps, the acceleration interpolated (sensors::mergeImuStreams).
+  std::string accel;
+  std::string gyro;
   std::string ground_truth = "/odometry";  ///< nav_msgs/Odometry of the body.
 };
 
 /// "viode" (and "euroc", whose official bags use cam0/cam1/imu0 too, without odometry: the ground
-/// truth topic is read only when present). OptionError naming --topics otherwise.
+/// truth topic is read only when present); "openloris" (the RealSense D435i of OpenLORIS-Scene:
+/// /d400/color/image_raw, /d400/accel/sample and /d400/gyro/sample; its ground truth is a
+/// separate file). OptionError naming --topics otherwise.
 BagTopics bagTopicsPreset(const std::string& name);
 
 /// The bag at `bag` with the calibration in `calibration` (a folder holding cam0/sensor.yaml,
 /// cam1/sensor.yaml in stereo and imu0/sensor.yaml with IMU, in EuRoC's format: an EuRoC mav0
-/// folder or the sequence folder holding it). InputError naming the bag, topic or file.
-std::unique_ptr<io::DatasetSource> openBagSource(const std::filesystem::path& bag,
-                                                 const std::filesystem::path& calibration,
-                                                 const BagTopics& topics,
-                                                 const io::DatasetSourceOptions& options);
+/// folder or the sequence folder holding it). `ground_truth_file` (TUM, EuRoC CSV or OpenLORIS's
+/// TUM with header lines; poses of the body) replaces the ground-truth topic when given.
+/// InputError naming the bag, topic or file.
+std::unique_ptr<io::DatasetSource> openBagSource(
+    const std::filesystem::path& bag, const std::filesystem::path& calibration,
+    const BagTopics& topics, const io::DatasetSourceOptions& options,
+    const std::filesystem::path& ground_truth_file = {});
 
 }  // namespace superdyna::bag

@@ -18,6 +18,9 @@
 
 namespace superdyna::bag {
 
+/// The channel order a colour image is stored in (sensor_msgs encodings bgr8 / rgb8).
+enum class ColourOrder { kBgr, kRgb };
+
 class BagWriter {
  public:
   /// Starts a bag at `file`, which must not exist (InputError); compression "none", "bz2" or
@@ -28,9 +31,10 @@ class BagWriter {
   BagWriter(const BagWriter&) = delete;
   BagWriter& operator=(const BagWriter&) = delete;
 
-  /// A sensor_msgs/Image: CV_8UC1 as mono8, CV_8UC3 as bgr8.
+  /// A sensor_msgs/Image: CV_8UC1 as mono8, CV_8UC3 (BGR, as OpenCV holds it) as bgr8, or as
+  /// rgb8 with its channels swapped.
   void writeImage(const std::string& topic, TimeNs t_ns, const cv::Mat& image,
-                  const std::string& frame_id);
+                  const std::string& frame_id, ColourOrder order = ColourOrder::kBgr);
   void writeImu(const std::string& topic, const sensors::ImuSample& sample,
                 const std::string& frame_id, std::optional<TimeNs> record_t_ns = std::nullopt);
   /// nav_msgs/Odometry: the body's pose in the world frame, its world-frame velocity as twist.

@@ -26,4 +26,22 @@ std::map<std::string, std::size_t> writeViodeBag(const std::filesystem::path& se
                                                  const std::filesystem::path& bag,
                                                  const std::string& compression = "lz4");
 
+/// The accelerometer rate of writeOpenlorisBag.
+inline constexpr double kOpenlorisAccelRateHz = 62.5;
+
+/// Writes the sequence's left camera and IMU as a bag in OpenLORIS-Scene's RealSense D435i layout,
+/// with the accelerometer and the gyroscope published apart as the RealSense driver does:
+///   /d400/color/image_raw  sensor_msgs/Image rgb8 (the grey image in all three channels)
+///   /d400/gyro/sample      sensor_msgs/Imu, angular velocity only, every IMU sample of the folder
+///   /d400/accel/sample     sensor_msgs/Imu, linear acceleration only, at kOpenlorisAccelRateHz
+///                          (the T265's rate, the slowest of OpenLORIS's IMUs), stamped 2 ms after
+///                          the first IMU sample and every 16 ms on (between gyroscope stamps),
+///                          the acceleration interpolated linearly between the folder's samples
+/// No ground-truth topic: OpenLORIS ships its ground truth as a separate file (the folder's
+/// state_groundtruth_estimate0/data.csv is one). Same rules and errors as writeViodeBag; the
+/// folder needs imu0/.
+std::map<std::string, std::size_t> writeOpenlorisBag(const std::filesystem::path& sequence,
+                                                     const std::filesystem::path& bag,
+                                                     const std::string& compression = "lz4");
+
 }  // namespace superdyna::bag

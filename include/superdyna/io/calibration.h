@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -36,6 +37,19 @@ sensors::CameraCalibration readCameraCalibration(const std::filesystem::path& se
 /// Reads an IMU sensor.yaml (EuRoC): T_BS, rate_hz and the four positive noise parameters; the
 /// optional positive `gyroscope_range` and `accelerometer_range` (the simulator writes them).
 sensors::ImuCalibration readImuCalibration(const std::filesystem::path& sensor_yaml);
+
+/// The sensors of a rig as a folder of sensor.yaml files describes them.
+struct SensorRig {
+  sensors::CameraCalibration camera0;
+  std::optional<sensors::CameraCalibration> camera1;  ///< When asked for (stereo).
+  std::optional<sensors::ImuCalibration> imu;         ///< When asked for (inertial).
+};
+
+/// Reads cam0/sensor.yaml, and cam1/sensor.yaml when `stereo`, imu0/sensor.yaml when `inertial`,
+/// from `folder` or its mav0/ (an EuRoC sequence folder or its mav0): the calibration of sensors
+/// whose data come from elsewhere (a bag, a live node). InputError naming the folder when it has
+/// no cam0/sensor.yaml, or the file.
+SensorRig readSensorFolder(const std::filesystem::path& folder, bool stereo, bool inertial);
 
 /// Checks a homogeneous 4x4 transform: finite, last row 0 0 0 1, rotation orthonormal within
 /// kRotationOrthonormalityTolerance; returns it re-orthonormalised. Throws InputError at `where`.

@@ -190,6 +190,8 @@ class System {
   std::size_t numMapPoints() const;
   /// Points of the current map observed by keypoints of different classes (map::Map).
   std::size_t numCrossClassMapPoints() const;
+  /// The current map's points (not culled): world position and semantic class, for viewers.
+  std::vector<std::pair<Eigen::Vector3d, int>> mapPointPositions() const;
   /// Points of the current map by the instance id of the object they lie on (0 = background).
   std::map<int, std::size_t> mapPointsPerInstance() const;
   /// The inertial initialisation has been applied to the current map.
