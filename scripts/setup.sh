@@ -24,6 +24,10 @@ packages=(
   clang libfuzzer-14-dev  # bench/fuzz.sh (libFuzzer targets, run briefly by scripts/test.sh)
   # ROS 1 bags (module bag/): ROS's own reader and message headers; python3-rosbag for the tests
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev python3-rosbag
+  # The live node (apps/ros/) and its test: roscpp, tf2_ros, cv_bridge; a ROS master, roslaunch,
+  # rospy and rosbag play; RViz and Xvfb for the live view and its screenshot
+  libroscpp-dev libtf2-ros-dev libcv-bridge-dev libgeometry-msgs-dev python3-rosmaster
+  python3-roslaunch python3-rospy python3-sensor-msgs python3-nav-msgs rviz xvfb
 )
 
 missing_packages() {
