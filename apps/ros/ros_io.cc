@@ -58,21 +58,35 @@ struct RosIo::Impl {
   std::mutex reported_mutex;
   std::set<std::string> reported_topics;
 
-  /// The image as CV_8UC1, or an empty matrix (counted, reported once per topic).
-  cv::Mat greyImage(const sensor_msgs::ImageConstPtr& message, const std::string& topic) {
+  /// The image in `encoding` (mono8 or bgr8), or an empty matrix (counted, reported once per
+  /// topic).
+  cv::Mat converted(const sensor_msgs::ImageConstPtr& message, const std::string& topic,
+                    const std::string& encoding) {
     try {
-      return cv_bridge::toCvCopy(message, sensor_msgs::image_encodings::MONO8)->image;
+      return cv_bridge::toCvCopy(message, encoding)->image;
     } catch (const cv_bridge::Exception& e) {
       ++conversion_errors;
       const std::lock_guard lock(reported_mutex);
       if (reported_topics.insert(topic).second) {
         ROS_ERROR(
-            "%s: image encoding '%s' cannot be converted to mono8 (%s); such images are "
+            "%s: image encoding '%s' cannot be converted to %s (%s); such images are "
             "skipped",
-            topic.c_str(), message->encoding.c_str(), e.what());
+            topic.c_str(), message->encoding.c_str(), encoding.c_str(), e.what());
       }
       return {};
     }
+  }
+
+  /// Subscribes to an image topic, handing on the converted images with their header stamps.
+  void subscribeImages(const std::string& topic, int camera, const std::string& encoding,
+                       const std::function<void(int, TimeNs, const cv::Mat&)>& handler) {
+    constexpr std::uint32_t kQueue = 200;  // messages roscpp buffers before dropping
+    subscribers.push_back(node->subscribe<sensor_msgs::Image>(
+        topic, kQueue,
+        [this, camera, topic, encoding, handler](const sensor_msgs::ImageConstPtr& message) {
+          const cv::Mat image = converted(message, topic, encoding);
+          if (!image.empty()) handler(camera, stampNs(message->header.stamp), image);
+        }));
   }
 };
 
@@ -104,17 +118,18 @@ bool RosIo::param(const std::string& name, bool fallback) const {
   return value;
 }
 
-void RosIo::subscribe(const Subscriptions& topics, ImageHandler on_image, ImuHandler on_imu) {
-  constexpr std::uint32_t kQueue = 200;  // messages roscpp buffers per topic before dropping
-  const std::string names[2] = {topics.cam0, topics.cam1};
+void RosIo::subscribe(const Subscriptions& topics, ImageHandler on_image, ImuHandler on_imu,
+                      SegmentationHandler on_segmentation) {
+  const std::string cameras[2] = {topics.cam0, topics.cam1};
   for (int camera = 0; camera < 2; ++camera) {
-    if (names[camera].empty()) continue;
-    const std::string topic = names[camera];
-    impl_->subscribers.push_back(impl_->node->subscribe<sensor_msgs::Image>(
-        topic, kQueue, [this, camera, topic, on_image](const sensor_msgs::ImageConstPtr& message) {
-          const cv::Mat image = impl_->greyImage(message, topic);
-          if (!image.empty()) on_image(camera, stampNs(message->header.stamp), image);
-        }));
+    if (!cameras[camera].empty()) {
+      impl_->subscribeImages(cameras[camera], camera, sensor_msgs::image_encodings::MONO8,
+                             on_image);
+    }
+    if (!topics.segmentation[camera].empty() && on_segmentation) {
+      impl_->subscribeImages(topics.segmentation[camera], camera,
+                             sensor_msgs::image_encodings::BGR8, on_segmentation);
+    }
   }
   if (!topics.imu.empty()) {
     impl_->subscribers.push_back(impl_->node->subscribe<sensor_msgs::Imu>(

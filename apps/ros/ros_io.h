@@ -26,6 +26,7 @@ struct Subscriptions {
   std::string cam0;
   std::string cam1;
   std::string imu;
+  std::string segmentation[2];  ///< Colour segmentation images of camera 0 and 1.
 };
 
 /// A map point to draw, with its colour.
@@ -39,6 +40,8 @@ class RosIo {
   /// A grey image (CV_8UC1; cv_bridge converts colour and 16-bit images) of camera 0 or 1.
   using ImageHandler = std::function<void(int camera, TimeNs t_ns, const cv::Mat& image)>;
   using ImuHandler = std::function<void(const sensors::ImuSample& sample)>;
+  /// A colour segmentation image (CV_8UC3 BGR) of camera 0 or 1.
+  using SegmentationHandler = std::function<void(int camera, TimeNs t_ns, const cv::Mat& bgr)>;
 
   /// ros::init with ROS's SIGINT handling (ok() turns false) and the node's handles.
   RosIo(int argc, char** argv, const std::string& node_name);
@@ -53,7 +56,8 @@ class RosIo {
 
   /// Subscribes and starts a spinner thread that calls the handlers. Images that cv_bridge cannot
   /// convert are counted (conversionErrors) and reported once per topic.
-  void subscribe(const Subscriptions& topics, ImageHandler on_image, ImuHandler on_imu);
+  void subscribe(const Subscriptions& topics, ImageHandler on_image, ImuHandler on_imu,
+                 SegmentationHandler on_segmentation = {});
   /// Advertises ~odometry (nav_msgs/Odometry), ~path (nav_msgs/Path), ~map_points
   /// (sensor_msgs/PointCloud2, xyz + rgb) and ~overlay (sensor_msgs/Image bgr8), and the tf
   /// `world_frame` -> `body_frame`.

@@ -15,11 +15,13 @@
 #include <mutex>
 #include <optional>
 
+#include "live_colour_segmenter.h"
 #include "ros_io.h"
 #include "superdyna/core/error.h"
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/live_frame_assembler.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/semantics/dataset_segmenter.h"
 #include "superdyna/semantics/overlay.h"
 #include "superdyna/system/frame_overlays.h"
 #include "superdyna/system/system.h"
@@ -41,6 +43,10 @@ struct NodeSettings {
   int frame_queue = 2;  ///< Frames waiting for the pipeline; older ones are dropped.
   int overlay_every = 1;
   int map_points_every = 5;  ///< Map points published every N-th keyframe.
+  /// semantics.segmenter dataset (format color): the colour segmentation topics, and how long a
+  /// frame waits for its segmentation image.
+  std::string segmentation_topics[2];
+  int segmentation_wait_ms = 300;
 };
 
 NodeSettings readSettings(const RosIo& ros) {
@@ -58,6 +64,9 @@ NodeSettings readSettings(const RosIo& ros) {
   s.frame_queue = ros.param("frame_queue", 2);
   s.overlay_every = ros.param("overlay_every", 1);
   s.map_points_every = ros.param("map_points_every", 5);
+  s.segmentation_topics[0] = ros.param("segmentation0_topic", std::string("/cam0/segmentation"));
+  s.segmentation_topics[1] = ros.param("segmentation1_topic", std::string("/cam1/segmentation"));
+  s.segmentation_wait_ms = ros.param("segmentation_wait_ms", 300);
   if (s.calibration.empty()) {
     throw OptionError("~calibration", "set the folder of the rig's sensor.yaml files");
   }
@@ -72,16 +81,16 @@ system::SystemOptions systemOptions(const NodeSettings& settings) {
   if (!settings.config.empty()) options = system::loadSystemOptions(settings.config);
   options.mode = system::parseSensorMode(settings.mode);
   options.deterministic = settings.deterministic;
-  if (options.semantics.segmenter == "dataset") {
-    throw OptionError("semantics.segmenter",
-                      "the dataset backend reads masks of a recorded sequence; a live node "
-                      "segments with a network (yolo, maskrcnn, sam) or none");
+  if (options.semantics.segmenter == "dataset" && options.semantics.dataset_format != "color") {
+    throw OptionError("semantics.dataset_format",
+                      "a live node reads colour segmentation topics (color) or segments with a "
+                      "network (semantics.segmenter yolo, maskrcnn, sam)");
   }
   return options;
 }
 
 /// Frames from the callbacks to the pipeline: the newest `capacity` wait, older ones are dropped
-/// (the pipeline fell behind) and counted.
+/// (the pipeline fell behind) and counted; the IMU samples of a dropped frame go to the next one.
 class FrameQueue {
  public:
   explicit FrameQueue(std::size_t capacity) : capacity_(capacity) {}
@@ -91,6 +100,7 @@ class FrameQueue {
       const std::lock_guard lock(mutex_);
       frames_.push_back(std::move(bundle));
       while (frames_.size() > capacity_) {
+        io::carrySkippedImu(frames_[0], frames_[1]);  // no motion lost with the frame
         frames_.pop_front();
         ++dropped_;
       }
@@ -236,8 +246,24 @@ int runNode(int argc, char** argv) {
   if (!stereo) settings.topics.cam1.clear();
   if (!inertial) settings.topics.imu.clear();
 
-  system::System slam(options, rig.camera0, rig.camera1, rig.imu,
-                      semantics::makeSegmenter(options.semantics, settings.calibration));
+  // The dataset backend on live topics, or a network, or none.
+  LiveColourSegmenter* topic_segmenter = nullptr;
+  std::unique_ptr<semantics::Segmenter> segmenter;
+  if (options.semantics.segmenter == "dataset") {
+    auto live = std::make_unique<LiveColourSegmenter>(
+        semantics::readColourTables(options.semantics, settings.calibration),
+        settings.segmentation_wait_ms * kNsPerMillisecond);
+    topic_segmenter = live.get();
+    segmenter = semantics::withPerturbation(options.semantics, std::move(live));
+  } else {
+    segmenter = semantics::makeSegmenter(options.semantics, settings.calibration);
+  }
+  if (topic_segmenter) {
+    settings.topics.segmentation[0] = settings.segmentation_topics[0];
+    if (stereo && options.semantics.right_labels != "left")
+      settings.topics.segmentation[1] = settings.segmentation_topics[1];
+  }
+  system::System slam(options, rig.camera0, rig.camera1, rig.imu, std::move(segmenter));
   system::FrameOverlays overlays(settings.overlay_every,
                                  options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
                                      options.tracker.dynamic.geometric);
@@ -251,7 +277,10 @@ int runNode(int argc, char** argv) {
   ros.subscribe(
       settings.topics,
       [&](int camera, TimeNs t_ns, const cv::Mat& image) { intake.image(camera, t_ns, image); },
-      [&](const sensors::ImuSample& sample) { intake.imu(sample); });
+      [&](const sensors::ImuSample& sample) { intake.imu(sample); },
+      [&](int camera, TimeNs t_ns, const cv::Mat& bgr) {
+        if (topic_segmenter) topic_segmenter->add(camera, t_ns, bgr);
+      });
   fmt::print(
       "superdyna_ros: {} SLAM ({}), images {}{}{}{}; publishing ~odometry, ~path, "
       "~map_points, ~overlay and tf {} -> {}\n",
@@ -271,6 +300,12 @@ int runNode(int argc, char** argv) {
     fmt::print("superdyna_ros: wrote {}\n", settings.output);
   }
   printSummary(slam, intake, queue, publisher, ros);
+  if (topic_segmenter) {
+    fmt::print(
+        "superdyna_ros: {} segmentations did not arrive in time (frames taken as all "
+        "background)\n",
+        topic_segmenter->missing());
+  }
   return 0;
 }
 

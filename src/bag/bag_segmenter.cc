@@ -3,9 +3,7 @@
 #include <fmt/format.h>
 
 #include "superdyna/core/error.h"
-#include "superdyna/io/euroc_dataset.h"
 #include "superdyna/semantics/dataset_segmenter.h"
-#include "superdyna/semantics/mask_perturbation.h"
 
 namespace superdyna::bag {
 
@@ -14,11 +12,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kSegmentationTopics[2] = {"/cam0/segmentation", "/cam1/segmentation"};
-
-/// The folder holding the simulator's tables: `calibration` or its mav0/.
-fs::path tableFolder(const fs::path& calibration) {
-  return fs::exists(calibration / "mav0") ? calibration / "mav0" : calibration;
-}
 
 }  // namespace
 
@@ -72,20 +65,12 @@ std::unique_ptr<semantics::Segmenter> makeBagSegmenter(const semantics::Segmente
                       fmt::format("a bag carries colour segmentation topics: use color, not {}",
                                   options.dataset_format));
   }
-  const fs::path tables = tableFolder(calibration);
-  const std::map<std::uint32_t, int> colours =
-      semantics::readColourTable(options.color_table.empty() ? tables / "segmentation_colors.csv"
-                                                             : fs::path(options.color_table));
-  const std::map<int, int> classes = options.movable_ids.empty()
-                                         ? io::readInstanceClasses(tables / "instances.csv")
-                                         : semantics::readMovableIds(options.movable_ids);
+  semantics::ColourTables tables = semantics::readColourTables(options, calibration);
   const std::string topics[2] = {kSegmentationTopics[0],
                                  options.right_labels == "left" ? "" : kSegmentationTopics[1]};
-  std::unique_ptr<semantics::Segmenter> segmenter =
-      std::make_unique<BagColourSegmenter>(bag, topics, colours, classes);
-  if (options.mask_dilate == 0 && options.mask_erode == 0) return segmenter;
-  return std::make_unique<semantics::PerturbedSegmenter>(std::move(segmenter), options.mask_dilate,
-                                                         options.mask_erode);
+  return semantics::withPerturbation(
+      options, std::make_unique<BagColourSegmenter>(bag, topics, std::move(tables.object_of_colour),
+                                                    std::move(tables.classes)));
 }
 
 }  // namespace superdyna::bag

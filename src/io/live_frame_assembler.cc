@@ -113,4 +113,12 @@ std::optional<sensors::FrameBundle> LiveFrameAssembler::next() {
   return bundle;
 }
 
+void carrySkippedImu(const sensors::FrameBundle& skipped, sensors::FrameBundle& next) {
+  if (skipped.imu.empty()) return;
+  std::vector<sensors::ImuSample> merged = skipped.imu;
+  for (const sensors::ImuSample& sample : next.imu)
+    if (sample.t_ns > merged.back().t_ns) merged.push_back(sample);
+  next.imu = std::move(merged);
+}
+
 }  // namespace superdyna::io

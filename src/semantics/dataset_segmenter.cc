@@ -55,6 +55,21 @@ std::map<std::uint32_t, int> readColourTable(const fs::path& file) {
   return table;
 }
 
+ColourTables readColourTables(const SegmenterOptions& options, const fs::path& folder) {
+  const fs::path tables = fs::exists(folder / "mav0") ? folder / "mav0" : folder;
+  ColourTables out;
+  out.object_of_colour =
+      readColourTable(tableOr(options.color_table, tables / "segmentation_colors.csv"));
+  out.classes = options.movable_ids.empty() ? io::readInstanceClasses(tables / "instances.csv")
+                                            : readMovableIds(options.movable_ids);
+  if (out.classes.empty()) {
+    throw InputError(InputLocation{tables / "instances.csv"},
+                     "no movable objects: give semantics.movable_ids (VIODE: "
+                     "vehicle_ids_<scene>.txt)");
+  }
+  return out;
+}
+
 std::map<int, int> readMovableIds(const fs::path& file) {
   std::map<int, int> classes;
   const std::vector<io::TextRow> rows = io::readTextRows(file, io::Delimiter::kComma);
@@ -129,15 +144,9 @@ DatasetSegmenter::DatasetSegmenter(const fs::path& dataset, const SegmenterOptio
                        "colour segmentation requested but the folder does not exist (simulate "
                        "with --semantic-color)");
     }
-    object_of_colour_ =
-        readColourTable(tableOr(options.color_table, dataset_.root() / "segmentation_colors.csv"));
-    classes_ = options.movable_ids.empty() ? dataset_.instanceClasses()
-                                           : readMovableIds(options.movable_ids);
-    if (classes_.empty()) {
-      throw InputError(InputLocation{dataset_.root() / "instances.csv"},
-                       "no movable objects: give semantics.movable_ids (VIODE: "
-                       "vehicle_ids_<scene>.txt)");
-    }
+    ColourTables tables = readColourTables(options, dataset_.root());
+    object_of_colour_ = std::move(tables.object_of_colour);
+    classes_ = std::move(tables.classes);
     return;
   }
   if (!dataset_.hasInstanceMasks()) {

@@ -237,6 +237,11 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
   } else {
     return nullptr;
   }
+  return withPerturbation(options, std::move(segmenter));
+}
+
+std::unique_ptr<Segmenter> withPerturbation(const SegmenterOptions& options,
+                                            std::unique_ptr<Segmenter> segmenter) {
   if (options.mask_dilate == 0 && options.mask_erode == 0) return segmenter;
   return std::make_unique<PerturbedSegmenter>(std::move(segmenter), options.mask_dilate,
                                               options.mask_erode);

@@ -133,5 +133,24 @@ TEST(LiveFrameAssembler, FramesTheImuNeverReachesAreDroppedAfterTheWait) {
   EXPECT_TRUE(visual->imu.empty());
 }
 
+TEST(LiveFrameAssembler, ASkippedFramesImuIsCarriedIntoTheNextFrame) {
+  std::vector<sensors::ImuSample> imu;
+  for (TimeNs t = 0; t <= 200 * kMs; t += 5 * kMs)
+    imu.push_back(imuAt(t));
+  LiveFrameAssembler assembler({.stereo = false});
+  for (const sensors::ImuSample& sample : imu)
+    assembler.addImu(sample);
+  for (const TimeNs t : {TimeNs{50 * kMs}, TimeNs{102 * kMs}, TimeNs{150 * kMs}})
+    assembler.addImage(0, t, imageWith(1));
+  const std::vector<sensors::FrameBundle> frames = drain(assembler);
+  ASSERT_EQ(frames.size(), 3u);
+  sensors::FrameBundle next = frames[2];
+  carrySkippedImu(frames[1], next);  // the pipeline sees 50 ms, then 150 ms
+  const std::vector<sensors::ImuSample> expected = bracketingImu(imu, 50 * kMs, 150 * kMs);
+  ASSERT_EQ(next.imu.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); ++k)
+    EXPECT_EQ(next.imu[k].t_ns, expected[k].t_ns);
+}
+
 }  // namespace
 }  // namespace superdyna::io

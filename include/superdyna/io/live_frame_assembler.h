@@ -41,6 +41,11 @@ struct LiveCounters {
   std::size_t duplicate_images = 0;     ///< Images of a camera repeating a stamp.
 };
 
+/// A frame handed out by the assembler is skipped (the pipeline fell behind): `next`, the frame
+/// after it, takes over its IMU samples, so that next's interval starts where the skipped one's
+/// did and no motion is lost between the frames the pipeline sees.
+void carrySkippedImu(const sensors::FrameBundle& skipped, sensors::FrameBundle& next);
+
 class LiveFrameAssembler {
  public:
   explicit LiveFrameAssembler(const LiveAssemblerOptions& options) : options_(options) {}

@@ -28,6 +28,18 @@ std::map<std::uint32_t, int> readColourTable(const std::filesystem::path& file);
 /// "id, name" header.
 std::map<int, int> readMovableIds(const std::filesystem::path& file);
 
+/// What a stream of colour segmentation images (a bag's or a live node's topics) needs: colour ->
+/// object id, and the classes of the movable objects.
+struct ColourTables {
+  std::map<std::uint32_t, int> object_of_colour;
+  std::map<int, int> classes;
+};
+
+/// The tables of `options` (semantics.color_table, semantics.movable_ids), by default `folder`'s
+/// (or its mav0/'s) segmentation_colors.csv and instances.csv as the simulator writes them.
+/// InputError naming the file; also when no object is movable.
+ColourTables readColourTables(const SegmenterOptions& options, const std::filesystem::path& folder);
+
 inline std::uint32_t packRgb(int r, int g, int b) {
   return (static_cast<std::uint32_t>(r) << 16) | (static_cast<std::uint32_t>(g) << 8) |
          static_cast<std::uint32_t>(b);

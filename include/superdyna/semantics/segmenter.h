@@ -190,6 +190,10 @@ struct SegmenterOptions {
   bool operator==(const SegmenterOptions&) const = default;
 };
 
+/// `segmenter` wrapped by the mask perturbation `options` ask for (itself when none).
+std::unique_ptr<Segmenter> withPerturbation(const SegmenterOptions& options,
+                                            std::unique_ptr<Segmenter> segmenter);
+
 /// The segmenter `options` choose for the sequence at `dataset` (the dataset backend reads it; an
 /// EuRoC-layout folder); nullptr for "none". Throws InputError when files are missing.
 std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
