@@ -359,9 +359,10 @@ class RunCommand : public Command {
     sub_ = app.add_subcommand("run", "Run SLAM over a dataset and write the trajectory");
     addDatasetOptions(*sub_, kind_, path_, /*bags=*/true);
     sub_->add_option("--calibration", bag_calibration_,
-                     "rosbag: the folder of EuRoC-style sensor.yaml files (cam0/, cam1/, imu0/; a "
-                     "mav0 folder or the sequence folder holding it) calibrating the bag's sensors")
-        ->check(CLI::ExistingDirectory);
+                     "rosbag: the calibration of the bag's sensors: a folder of EuRoC-style "
+                     "sensor.yaml files (cam0/, cam1/, imu0/; a mav0 folder or the sequence folder "
+                     "holding it) or a VINS-Fusion config file (VIODE's calibration.yaml)")
+        ->check(CLI::ExistingPath);
     sub_->add_option("--topics", bag_topics_,
                      "rosbag: topic preset: viode or euroc (/cam0/image_raw, /cam1/image_raw, "
                      "/imu0; ground truth from /odometry when the bag has it) or openloris "

@@ -112,6 +112,12 @@ int RosIo::param(const std::string& name, int fallback) const {
   return value;
 }
 
+double RosIo::param(const std::string& name, double fallback) const {
+  double value = fallback;
+  impl_->private_node->param(name, value, fallback);
+  return value;
+}
+
 bool RosIo::param(const std::string& name, bool fallback) const {
   bool value = fallback;
   impl_->private_node->param(name, value, fallback);

@@ -53,6 +53,7 @@ class RosIo {
   std::string param(const std::string& name, const std::string& fallback) const;
   int param(const std::string& name, int fallback) const;
   bool param(const std::string& name, bool fallback) const;
+  double param(const std::string& name, double fallback) const;
 
   /// Subscribes and starts a spinner thread that calls the handlers. Images that cv_bridge cannot
   /// convert are counted (conversionErrors) and reported once per topic.

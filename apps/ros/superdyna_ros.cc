@@ -21,6 +21,7 @@
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/live_frame_assembler.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/io/vins_calibration.h"
 #include "superdyna/semantics/dataset_segmenter.h"
 #include "superdyna/semantics/overlay.h"
 #include "superdyna/system/frame_overlays.h"
@@ -35,7 +36,9 @@ namespace fs = std::filesystem;
 struct NodeSettings {
   std::string config;       ///< YAML options file ("" = defaults).
   std::string mode;         ///< Sensor mode, as `superdyna run --mode`.
-  std::string calibration;  ///< Folder of EuRoC-style sensor.yaml files.
+  std::string calibration;  ///< Folder of EuRoC-style sensor.yaml files, or a VINS config file.
+  double camera_rate_hz = 20.0;  ///< Rates for a VINS config, which has none.
+  double imu_rate_hz = 200.0;
   bool deterministic = false;
   Subscriptions topics;
   std::string world_frame, body_frame;
@@ -55,6 +58,8 @@ NodeSettings readSettings(const RosIo& ros) {
   s.mode = ros.param("mode", std::string("stereo-inertial"));
   s.calibration = ros.param("calibration", std::string());
   s.deterministic = ros.param("deterministic", false);
+  s.camera_rate_hz = ros.param("camera_rate_hz", 20.0);
+  s.imu_rate_hz = ros.param("imu_rate_hz", 200.0);
   s.topics.cam0 = ros.param("cam0_topic", std::string("/cam0/image_raw"));
   s.topics.cam1 = ros.param("cam1_topic", std::string("/cam1/image_raw"));
   s.topics.imu = ros.param("imu_topic", std::string("/imu0"));
@@ -242,7 +247,9 @@ int runNode(int argc, char** argv) {
   const system::SystemOptions options = systemOptions(settings);
   const bool stereo = !system::isMonocular(options.mode);
   const bool inertial = system::usesImu(options.mode);
-  io::SensorRig rig = io::readSensorFolder(settings.calibration, stereo, inertial);
+  io::SensorRig rig = io::readRigCalibration(
+      settings.calibration, stereo, inertial,
+      {.camera_hz = settings.camera_rate_hz, .imu_hz = settings.imu_rate_hz});
   if (!stereo) settings.topics.cam1.clear();
   if (!inertial) settings.topics.imu.clear();
 

@@ -9,6 +9,7 @@
 #include "superdyna/core/error.h"
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/trajectory_io.h"
+#include "superdyna/io/vins_calibration.h"
 #include "superdyna/sensors/imu_streams.h"
 
 namespace superdyna::bag {
@@ -52,13 +53,14 @@ class BagSource : public io::DatasetSource {
     if (options.stereo && topics.cam1.empty()) {
       throw OptionError("--topics", "the topics name no second camera: run a mono mode");
     }
-    io::SensorRig rig = io::readSensorFolder(calibration, options.stereo, options.inertial);
-    camera0_ = std::move(rig.camera0);
-    camera1_ = std::move(rig.camera1);
-    imu_ = std::move(rig.imu);
     if (options.inertial) readImu();
     readGroundTruth(ground_truth_file);
     selectFrames();
+    io::SensorRig rig =
+        io::readRigCalibration(calibration, options.stereo, options.inertial, measuredRates());
+    camera0_ = std::move(rig.camera0);
+    camera1_ = std::move(rig.camera1);
+    imu_ = std::move(rig.imu);
     left_ = std::make_unique<BagImageStream>(reader_, topics.cam0);
     if (options.stereo) right_ = std::make_unique<BagImageStream>(reader_, topics.cam1);
   }
@@ -98,6 +100,26 @@ class BagSource : public io::DatasetSource {
   }
 
  private:
+  /// The camera and IMU rates of the bag (median stamp intervals), for a calibration format that
+  /// carries none (VINS); the defaults where a stream is too short.
+  io::SensorRates measuredRates() const {
+    io::SensorRates rates;
+    const auto median_rate = [](std::vector<TimeNs> stamps, double fallback) {
+      std::vector<TimeNs> gaps;
+      for (std::size_t i = 1; i < stamps.size(); ++i)
+        if (stamps[i] > stamps[i - 1]) gaps.push_back(stamps[i] - stamps[i - 1]);
+      if (gaps.empty()) return fallback;
+      std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
+      return 1e9 / static_cast<double>(gaps[gaps.size() / 2]);
+    };
+    rates.camera_hz = median_rate(frames_, rates.camera_hz);
+    std::vector<TimeNs> imu_stamps;
+    for (const sensors::ImuSample& sample : imu_samples_)
+      imu_stamps.push_back(sample.t_ns);
+    rates.imu_hz = median_rate(std::move(imu_stamps), rates.imu_hz);
+    return rates;
+  }
+
   /// One IMU topic, or an accelerometer and a gyroscope topic merged at the gyroscope's stamps.
   void readImu() {
     const auto stamp_of = [](const sensors::ImuSample& sample) { return sample.t_ns; };

@@ -55,7 +55,9 @@ std::map<std::uint32_t, int> readColourTable(const fs::path& file) {
   return table;
 }
 
-ColourTables readColourTables(const SegmenterOptions& options, const fs::path& folder) {
+ColourTables readColourTables(const SegmenterOptions& options, const fs::path& calibration) {
+  const fs::path folder =
+      fs::is_regular_file(calibration) ? calibration.parent_path() : calibration;
   const fs::path tables = fs::exists(folder / "mav0") ? folder / "mav0" : folder;
   ColourTables out;
   out.object_of_colour =

@@ -3,6 +3,7 @@
 
 #include "superdyna/bag/bag_source.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "superdyna/bag/bag_segmenter.h"
@@ -217,6 +218,65 @@ TEST(BagSource, OpenlorisLayoutPublishesTheImuApartAndTheSourceMergesItBack) {
   test::expectError<OptionError>(
       [&] { openBagSource(file, sequence, bagTopicsPreset("openloris"), stereo); },
       {"--topics", "no second camera"});
+}
+
+/// A VINS-Fusion config file describing the same rig as the folder's sensor.yaml files.
+fs::path writeVinsConfig(const fs::path& dir, const io::DatasetSource& folder) {
+  const auto matrix = [](const SE3d& T) {
+    const Eigen::Matrix4d M = T.matrix();
+    std::string data;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        data += fmt::format("{}{:.17g}", data.empty() ? "" : ", ", M(r, c));
+    return fmt::format("!!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [{}]\n", data);
+  };
+  const sensors::CameraCalibration* cameras[2] = {&folder.camera0(), &*folder.camera1()};
+  for (int i = 0; i < 2; ++i) {
+    const sensors::CameraCalibration& c = *cameras[i];
+    test::writeFile(dir / fmt::format("cam{}.yaml", i),
+                    fmt::format("%YAML:1.0\n---\nmodel_type: PINHOLE\nimage_width: {}\n"
+                                "image_height: {}\ndistortion_parameters:\n   k1: 0.0\n"
+                                "   k2: 0.0\n   p1: 0.0\n   p2: 0.0\nprojection_parameters:\n"
+                                "   fx: {:.17g}\n   fy: {:.17g}\n   cx: {:.17g}\n   cy: {:.17g}\n",
+                                c.width, c.height, c.fx, c.fy, c.cx, c.cy));
+  }
+  const sensors::ImuCalibration& imu = *folder.imu();
+  const fs::path config = dir / "calibration.yaml";
+  test::writeFile(config,
+                  fmt::format("%YAML:1.0\nimu: 1\nnum_of_cam: 2\ncam0_calib: \"cam0.yaml\"\n"
+                              "cam1_calib: \"cam1.yaml\"\nbody_T_cam0: {}body_T_cam1: {}"
+                              "acc_n: {:.17g}\ngyr_n: {:.17g}\nacc_w: {:.17g}\n"
+                              "gyr_w: {:.17g}\n",
+                              matrix(folder.camera0().T_b_c), matrix(folder.camera1()->T_b_c),
+                              imu.accelerometer_noise_density, imu.gyroscope_noise_density,
+                              imu.accelerometer_random_walk, imu.gyroscope_random_walk));
+  return config;
+}
+
+TEST(BagSource, AVinsConfigFileCalibratesTheBagAsTheFoldersSensorYamlFiles) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_vins");
+  const fs::path file = dir / "street.bag";
+  writeViodeBag(sequence, file, "none");
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, {});
+  ASSERT_TRUE(std::all_of(folder->camera0().distortion.begin(), folder->camera0().distortion.end(),
+                          [](double k) { return k == 0.0; }));  // as the file writes
+  const auto bag =
+      openBagSource(file, writeVinsConfig(dir.path(), *folder), bagTopicsPreset("viode"), {});
+  for (const auto& [actual, expected] :
+       {std::pair{&bag->camera0(), &folder->camera0()}, {&*bag->camera1(), &*folder->camera1()}}) {
+    EXPECT_EQ(actual->fx, expected->fx);
+    EXPECT_EQ(actual->cy, expected->cy);
+    EXPECT_EQ(actual->width, expected->width);
+    EXPECT_EQ(actual->distortion_model, expected->distortion_model);
+    EXPECT_EQ(actual->distortion, expected->distortion);
+    EXPECT_LT((actual->T_b_c.t - expected->T_b_c.t).norm(), 1e-12);
+    EXPECT_LT(actual->T_b_c.q.angularDistance(expected->T_b_c.q), 1e-12);
+    EXPECT_NEAR(actual->rate_hz, expected->rate_hz, 1e-6);  // measured from the stamps
+  }
+  EXPECT_EQ(bag->imu()->accelerometer_noise_density, folder->imu()->accelerometer_noise_density);
+  EXPECT_EQ(bag->imu()->gyroscope_random_walk, folder->imu()->gyroscope_random_walk);
+  EXPECT_NEAR(bag->imu()->rate_hz, folder->imu()->rate_hz, 1e-6);
 }
 
 TEST(BagSource, HeaderStampsOutOfTheBagsOrderAreAnError) {

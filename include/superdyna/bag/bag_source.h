@@ -35,11 +35,12 @@ struct BagTopics {
 /// separate file). OptionError naming --topics otherwise.
 BagTopics bagTopicsPreset(const std::string& name);
 
-/// The bag at `bag` with the calibration in `calibration` (a folder holding cam0/sensor.yaml,
-/// cam1/sensor.yaml in stereo and imu0/sensor.yaml with IMU, in EuRoC's format: an EuRoC mav0
-/// folder or the sequence folder holding it). `ground_truth_file` (TUM, EuRoC CSV or OpenLORIS's
-/// TUM with header lines; poses of the body) replaces the ground-truth topic when given.
-/// InputError naming the bag, topic or file.
+/// The bag at `bag` with the calibration `calibration`: a folder holding cam0/sensor.yaml,
+/// cam1/sensor.yaml in stereo and imu0/sensor.yaml with IMU, in EuRoC's format (an EuRoC mav0
+/// folder or the sequence folder holding it), or a VINS-Fusion config file as VIODE ships
+/// (io/vins_calibration.h; the rates, which it lacks, measured from the bag's stamps).
+/// `ground_truth_file` (TUM, EuRoC CSV or OpenLORIS's TUM with header lines; poses of the body)
+/// replaces the ground-truth topic when given. InputError naming the bag, topic or file.
 std::unique_ptr<io::DatasetSource> openBagSource(
     const std::filesystem::path& bag, const std::filesystem::path& calibration,
     const BagTopics& topics, const io::DatasetSourceOptions& options,

@@ -35,10 +35,12 @@ struct ColourTables {
   std::map<int, int> classes;
 };
 
-/// The tables of `options` (semantics.color_table, semantics.movable_ids), by default `folder`'s
-/// (or its mav0/'s) segmentation_colors.csv and instances.csv as the simulator writes them.
-/// InputError naming the file; also when no object is movable.
-ColourTables readColourTables(const SegmenterOptions& options, const std::filesystem::path& folder);
+/// The tables of `options` (semantics.color_table, semantics.movable_ids), by default those of the
+/// calibration folder (or its mav0/, or the folder of a calibration file):
+/// segmentation_colors.csv and instances.csv as the simulator writes them. InputError naming the
+/// file; also when no object is movable.
+ColourTables readColourTables(const SegmenterOptions& options,
+                              const std::filesystem::path& calibration);
 
 inline std::uint32_t packRgb(int r, int g, int b) {
   return (static_cast<std::uint32_t>(r) << 16) | (static_cast<std::uint32_t>(g) << 8) |
