@@ -364,10 +364,12 @@ class RunCommand : public Command {
                      "holding it) or a VINS-Fusion config file (VIODE's calibration.yaml)")
         ->check(CLI::ExistingPath);
     sub_->add_option("--topics", bag_topics_,
-                     "rosbag: topic preset: viode or euroc (/cam0/image_raw, /cam1/image_raw, "
-                     "/imu0; ground truth from /odometry when the bag has it) or openloris "
+                     "rosbag: topic preset or topic file: viode or euroc (/cam0/image_raw, "
+                     "/cam1/image_raw, /imu0; ground truth from /odometry when the bag has it), "
+                     "tumvi (the same, ground truth from /vrpn_client/raw_transform), openloris "
                      "(/d400/color/image_raw, /d400/accel/sample and /d400/gyro/sample merged at "
-                     "the gyroscope's stamps; monocular)")
+                     "the gyroscope's stamps; monocular), or a YAML file with keys cam0, cam1, imu "
+                     "or accel and gyro, ground_truth")
         ->capture_default_str();
     sub_->add_option("--ground-truth", bag_ground_truth_,
                      "rosbag: ground-truth file of the body (TUM, EuRoC CSV, OpenLORIS), instead "
@@ -464,7 +466,7 @@ class RunCommand : public Command {
                         "--dataset rosbag needs the folder of the bag's "
                         "sensor.yaml files (bags carry no calibration)");
     }
-    return bag::openBagSource(path_, *bag_calibration_, bag::bagTopicsPreset(bag_topics_), options,
+    return bag::openBagSource(path_, *bag_calibration_, bag::bagTopics(bag_topics_), options,
                               bag_ground_truth_);
 #else
     throw OptionError("--dataset",

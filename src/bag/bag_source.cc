@@ -10,6 +10,7 @@
 #include "superdyna/io/calibration.h"
 #include "superdyna/io/trajectory_io.h"
 #include "superdyna/io/vins_calibration.h"
+#include "superdyna/io/yaml_file.h"
 #include "superdyna/sensors/imu_streams.h"
 
 namespace superdyna::bag {
@@ -156,7 +157,7 @@ class BagSource : public io::DatasetSource {
       return;
     }
     if (topics_.ground_truth.empty() || !hasTopic(reader_, topics_.ground_truth)) return;
-    ground_truth_ = reader_.odometry(topics_.ground_truth);
+    ground_truth_ = reader_.groundTruth(topics_.ground_truth);
     requireStampOrder(
         ground_truth_, [](const auto& state) { return state.t_ns; }, reader_.path(),
         topics_.ground_truth);
@@ -247,6 +248,11 @@ class BagSource : public io::DatasetSource {
 
 BagTopics bagTopicsPreset(const std::string& name) {
   if (name == "viode" || name == "euroc") return BagTopics{};
+  if (name == "tumvi") {
+    BagTopics topics;
+    topics.ground_truth = "/vrpn_client/raw_transform";
+    return topics;
+  }
   if (name == "openloris") {
     return BagTopics{.cam0 = "/d400/color/image_raw",
                      .cam1 = "",
@@ -255,7 +261,43 @@ BagTopics bagTopicsPreset(const std::string& name) {
                      .gyro = "/d400/gyro/sample",
                      .ground_truth = ""};
   }
-  throw OptionError("--topics", fmt::format("expected viode, euroc or openloris, got '{}'", name));
+  throw OptionError(
+      "--topics",
+      fmt::format("expected viode, euroc, tumvi, openloris or a topic file, got '{}'", name));
+}
+
+BagTopics readBagTopics(const fs::path& file) {
+  const io::YamlFile yaml = io::YamlFile::load(file);
+  if (!yaml.root().IsMap()) throw InputError(InputLocation{file}, "expected a map of topics");
+  static const std::vector<std::string> kKeys = {"cam0",  "cam1", "imu",
+                                                 "accel", "gyro", "ground_truth"};
+  for (const auto& entry : yaml.root()) {
+    const std::string key = entry.first.as<std::string>();
+    if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end()) {
+      throw InputError(yaml.at(entry.first, key),
+                       "unknown key (cam0, cam1, imu, accel, gyro, ground_truth)");
+    }
+  }
+  const auto topic = [&](const std::string& key) {
+    return yaml.has(key) ? yaml.scalar(yaml.child(key), key) : std::string();
+  };
+  BagTopics topics{.cam0 = topic("cam0"),
+                   .cam1 = topic("cam1"),
+                   .imu = topic("imu"),
+                   .accel = topic("accel"),
+                   .gyro = topic("gyro"),
+                   .ground_truth = topic("ground_truth")};
+  if (topics.cam0.empty()) throw InputError(InputLocation{file, 0, "cam0"}, "missing");
+  if (!topics.imu.empty() && (!topics.accel.empty() || !topics.gyro.empty())) {
+    throw InputError(InputLocation{file, 0, "imu"},
+                     "give either imu or accel and gyro (published apart), not both");
+  }
+  return topics;
+}
+
+BagTopics bagTopics(const std::string& preset_or_file) {
+  if (fs::is_regular_file(preset_or_file)) return readBagTopics(preset_or_file);
+  return bagTopicsPreset(preset_or_file);
 }
 
 std::unique_ptr<io::DatasetSource> openBagSource(const fs::path& bag, const fs::path& calibration,

@@ -1,6 +1,7 @@
 #include "superdyna/bag/bag_writer.h"
 
 #include <fmt/format.h>
+#include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Image.h>
@@ -79,6 +80,20 @@ nav_msgs::Odometry odometryMessage(const sensors::GroundTruthState& state) {
   return msg;
 }
 
+geometry_msgs::TransformStamped transformMessage(const sensors::GroundTruthState& state) {
+  geometry_msgs::TransformStamped msg;
+  msg.header = header(state.t_ns, "world");
+  msg.child_frame_id = "body";
+  msg.transform.translation.x = state.T_w_b.t.x();
+  msg.transform.translation.y = state.T_w_b.t.y();
+  msg.transform.translation.z = state.T_w_b.t.z();
+  msg.transform.rotation.w = state.T_w_b.q.w();
+  msg.transform.rotation.x = state.T_w_b.q.x();
+  msg.transform.rotation.y = state.T_w_b.q.y();
+  msg.transform.rotation.z = state.T_w_b.q.z();
+  return msg;
+}
+
 rosbag::compression::CompressionType compressionOf(const std::string& name) {
   if (name == "bz2") return rosbag::compression::BZ2;
   if (name == "lz4") return rosbag::compression::LZ4;
@@ -141,6 +156,11 @@ void BagWriter::writeImu(const std::string& topic, const sensors::ImuSample& sam
 
 void BagWriter::writeOdometry(const std::string& topic, const sensors::GroundTruthState& state) {
   impl_->bag.write(topic, rosTime(state.t_ns), odometryMessage(state));
+  ++counts_[topic];
+}
+
+void BagWriter::writeTransform(const std::string& topic, const sensors::GroundTruthState& state) {
+  impl_->bag.write(topic, rosTime(state.t_ns), transformMessage(state));
   ++counts_[topic];
 }
 

@@ -1,6 +1,8 @@
 #include "superdyna/bag/rosbag_reader.h"
 
 #include <fmt/format.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
@@ -24,6 +26,8 @@ constexpr const char* kImageType = "sensor_msgs/Image";
 constexpr const char* kCompressedImageType = "sensor_msgs/CompressedImage";
 constexpr const char* kImuType = "sensor_msgs/Imu";
 constexpr const char* kOdometryType = "nav_msgs/Odometry";
+constexpr const char* kPoseStampedType = "geometry_msgs/PoseStamped";
+constexpr const char* kTransformStampedType = "geometry_msgs/TransformStamped";
 
 TimeNs stampNs(const ros::Time& stamp) {
   return static_cast<TimeNs>(stamp.sec) * kNsPerSecond + static_cast<TimeNs>(stamp.nsec);
@@ -230,26 +234,53 @@ std::vector<TimeNs> RosbagReader::imageStamps(const std::string& name) const {
   return stamps;
 }
 
-std::vector<sensors::GroundTruthState> RosbagReader::odometry(const std::string& name) const {
-  requireType(topic(name), impl_->path, {kOdometryType});
+namespace {
+
+SE3d poseOf(const geometry_msgs::Point& p, const geometry_msgs::Quaternion& q) {
+  return SE3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z),  // SE3d normalises
+              Eigen::Vector3d(p.x, p.y, p.z));
+}
+
+/// A ground-truth message (nav_msgs/Odometry, geometry_msgs/PoseStamped or TransformStamped) as a
+/// state; nullopt when it is none of them.
+std::optional<sensors::GroundTruthState> groundTruthState(const rosbag::MessageInstance& message) {
+  sensors::GroundTruthState state;
+  if (const auto odometry = message.instantiate<nav_msgs::Odometry>()) {
+    const auto& v = odometry->twist.twist.linear;
+    state.t_ns = stampNs(odometry->header.stamp);
+    state.T_w_b = poseOf(odometry->pose.pose.position, odometry->pose.pose.orientation);
+    state.v_w = Eigen::Vector3d(v.x, v.y, v.z);
+  } else if (const auto pose = message.instantiate<geometry_msgs::PoseStamped>()) {
+    state.t_ns = stampNs(pose->header.stamp);
+    state.T_w_b = poseOf(pose->pose.position, pose->pose.orientation);
+  } else if (const auto transform = message.instantiate<geometry_msgs::TransformStamped>()) {
+    const auto& t = transform->transform.translation;
+    geometry_msgs::Point p;
+    p.x = t.x;
+    p.y = t.y;
+    p.z = t.z;
+    state.t_ns = stampNs(transform->header.stamp);
+    state.T_w_b = poseOf(p, transform->transform.rotation);
+  } else {
+    return std::nullopt;
+  }
+  return state;
+}
+
+}  // namespace
+
+std::vector<sensors::GroundTruthState> RosbagReader::groundTruth(const std::string& name) const {
+  requireType(topic(name), impl_->path, {kOdometryType, kPoseStampedType, kTransformStampedType});
   std::vector<sensors::GroundTruthState> states;
   try {
     rosbag::View view(impl_->bag, rosbag::TopicQuery(name));
     for (const rosbag::MessageInstance& message : view) {
-      const auto odometry = message.instantiate<nav_msgs::Odometry>();
-      if (!odometry) {
-        throw InputError(fmt::format("{}: does not deserialise as {}",
-                                     impl_->where(name, states.size()), kOdometryType));
+      std::optional<sensors::GroundTruthState> state = groundTruthState(message);
+      if (!state) {
+        throw InputError(fmt::format("{}: {} does not deserialise as a pose",
+                                     impl_->where(name, states.size()), message.getDataType()));
       }
-      const auto& p = odometry->pose.pose.position;
-      const auto& q = odometry->pose.pose.orientation;
-      const auto& v = odometry->twist.twist.linear;
-      sensors::GroundTruthState state;
-      state.t_ns = stampNs(odometry->header.stamp);
-      state.T_w_b = SE3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z),  // SE3d normalises
-                         Eigen::Vector3d(p.x, p.y, p.z));
-      state.v_w = Eigen::Vector3d(v.x, v.y, v.z);
-      states.push_back(state);
+      states.push_back(*state);
     }
   } catch (const rosbag::BagException& e) {
     throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));

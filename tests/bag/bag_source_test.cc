@@ -279,6 +279,48 @@ TEST(BagSource, AVinsConfigFileCalibratesTheBagAsTheFoldersSensorYamlFiles) {
   EXPECT_NEAR(bag->imu()->rate_hz, folder->imu()->rate_hz, 1e-6);
 }
 
+TEST(BagSource, TopicFilesNameAnyTopicsAndTransformsServeAsGroundTruth) {
+  const fs::path& sequence = streetSequence();
+  const test::ScratchDir dir("bag_source_topic_file");
+  const fs::path file = dir / "mocap.bag";
+  const auto folder = io::openDataset(io::DatasetKind::kEuroc, sequence, {});
+  {
+    BagWriter out(file, "none");
+    const cv::Mat image(folder->camera0().height, folder->camera0().width, CV_8UC1, cv::Scalar(90));
+    for (const TimeNs t : {TimeNs{2000000000}, TimeNs{2050000000}})
+      out.writeImage("/left", t, image, "cam0");
+    sensors::GroundTruthState state;
+    state.T_w_b = SE3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+                       Eigen::Vector3d(1.0, 2.0, 3.0));
+    for (const TimeNs t : {TimeNs{2000000000}, TimeNs{2050000000}}) {
+      state.t_ns = t;
+      out.writeTransform("/vrpn_client/raw_transform", state);
+    }
+    out.close();
+  }
+  test::writeFile(dir / "topics.yaml", "cam0: /left\nground_truth: /vrpn_client/raw_transform\n");
+  io::DatasetSourceOptions mono;
+  mono.stereo = false;
+  mono.inertial = false;
+  const auto bag = openBagSource(file, sequence, bagTopics((dir / "topics.yaml").string()), mono);
+  ASSERT_EQ(bag->size(), 2u);
+  ASSERT_EQ(bag->groundTruth().size(), 2u);
+  EXPECT_LT((bag->groundTruth()[1].T_w_x.t - Eigen::Vector3d(1.0, 2.0, 3.0)).norm(), 1e-12);
+  const auto frame = bag->next();
+  ASSERT_TRUE(frame && frame->T_w_b_gt);
+  EXPECT_NEAR(frame->T_w_b_gt->q.angularDistance(
+                  Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()))),
+              0.0, 1e-12);
+
+  test::writeFile(dir / "bad.yaml", "cam0: /left\nimu0: /imu\n");
+  test::expectError([&] { readBagTopics(dir / "bad.yaml"); }, {"bad.yaml", "imu0", "unknown key"});
+  test::writeFile(dir / "bad.yaml", "cam1: /right\n");
+  test::expectError([&] { readBagTopics(dir / "bad.yaml"); }, {"bad.yaml", "cam0", "missing"});
+  test::writeFile(dir / "bad.yaml", "cam0: /left\nimu: /imu\naccel: /accel\n");
+  test::expectError([&] { readBagTopics(dir / "bad.yaml"); }, {"bad.yaml", "either imu or accel"});
+  EXPECT_EQ(bagTopics("tumvi").ground_truth, "/vrpn_client/raw_transform");
+}
+
 TEST(BagSource, HeaderStampsOutOfTheBagsOrderAreAnError) {
   const fs::path& sequence = streetSequence();
   const test::ScratchDir dir("bag_source_order");

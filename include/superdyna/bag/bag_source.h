@@ -30,10 +30,18 @@ struct BagTopics {
 };
 
 /// "viode" (and "euroc", whose official bags use cam0/cam1/imu0 too, without odometry: the ground
-/// truth topic is read only when present); "openloris" (the RealSense D435i of OpenLORIS-Scene:
-/// /d400/color/image_raw, /d400/accel/sample and /d400/gyro/sample; its ground truth is a
-/// separate file). OptionError naming --topics otherwise.
+/// truth topic is read only when present); "tumvi" (cam0/cam1/imu0, ground truth from
+/// /vrpn_client/raw_transform: the motion-capture marker's pose, not the IMU's); "openloris" (the
+/// RealSense D435i of OpenLORIS-Scene: /d400/color/image_raw, /d400/accel/sample and
+/// /d400/gyro/sample; its ground truth is a separate file). OptionError naming --topics otherwise.
 BagTopics bagTopicsPreset(const std::string& name);
+
+/// A topic file: a YAML map with cam0 (required), cam1, imu or accel + gyro, ground_truth (a
+/// missing key = not read). InputError naming the file and key.
+BagTopics readBagTopics(const std::filesystem::path& file);
+
+/// readBagTopics when `preset_or_file` is a file, else bagTopicsPreset.
+BagTopics bagTopics(const std::string& preset_or_file);
 
 /// The bag at `bag` with the calibration `calibration`: a folder holding cam0/sensor.yaml,
 /// cam1/sensor.yaml in stereo and imu0/sensor.yaml with IMU, in EuRoC's format (an EuRoC mav0

@@ -39,6 +39,8 @@ class BagWriter {
                 const std::string& frame_id, std::optional<TimeNs> record_t_ns = std::nullopt);
   /// nav_msgs/Odometry: the body's pose in the world frame, its world-frame velocity as twist.
   void writeOdometry(const std::string& topic, const sensors::GroundTruthState& state);
+  /// geometry_msgs/TransformStamped world -> body (as TUM-VI's motion capture publishes).
+  void writeTransform(const std::string& topic, const sensors::GroundTruthState& state);
   /// Finishes the bag and moves it to its name.
   void close();
 

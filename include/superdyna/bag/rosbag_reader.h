@@ -65,9 +65,10 @@ class RosbagReader {
   std::vector<sensors::ImuSample> imuSamples(const std::string& topic) const;
   /// The header stamps of an image topic's messages in the bag's order.
   std::vector<TimeNs> imageStamps(const std::string& topic) const;
-  /// A nav_msgs/Odometry topic as ground-truth states (pose; twist linear as the world-frame
-  /// velocity; biases zero) in the bag's order.
-  std::vector<sensors::GroundTruthState> odometry(const std::string& topic) const;
+  /// A ground-truth topic as states in the bag's order: nav_msgs/Odometry (pose; twist linear as
+  /// the world-frame velocity), geometry_msgs/PoseStamped or TransformStamped (TUM-VI's
+  /// /vrpn_client/raw_transform; pose only); biases zero.
+  std::vector<sensors::GroundTruthState> groundTruth(const std::string& topic) const;
 
  private:
   struct Impl;
