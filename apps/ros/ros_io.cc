@@ -17,33 +17,13 @@
 #include <mutex>
 #include <set>
 
+#include "superdyna/bag/ros_conversions.h"
+
 namespace superdyna::ros_node {
 
-namespace {
-
-ros::Time rosTime(TimeNs t_ns) {
-  ros::Time time;
-  time.fromNSec(static_cast<std::uint64_t>(t_ns));
-  return time;
-}
-
-TimeNs stampNs(const ros::Time& stamp) {
-  return static_cast<TimeNs>(stamp.toNSec());
-}
-
-geometry_msgs::Pose poseMessage(const SE3d& T) {
-  geometry_msgs::Pose pose;
-  pose.position.x = T.t.x();
-  pose.position.y = T.t.y();
-  pose.position.z = T.t.z();
-  pose.orientation.w = T.q.w();
-  pose.orientation.x = T.q.x();
-  pose.orientation.y = T.q.y();
-  pose.orientation.z = T.q.z();
-  return pose;
-}
-
-}  // namespace
+using bag::poseMessage;
+using bag::rosTime;
+using bag::stampNs;
 
 struct RosIo::Impl {
   std::unique_ptr<ros::NodeHandle> node;
@@ -139,15 +119,8 @@ void RosIo::subscribe(const Subscriptions& topics, ImageHandler on_image, ImuHan
   }
   if (!topics.imu.empty()) {
     impl_->subscribers.push_back(impl_->node->subscribe<sensor_msgs::Imu>(
-        topics.imu, 2000, [on_imu](const sensor_msgs::ImuConstPtr& message) {
-          sensors::ImuSample sample;
-          sample.t_ns = stampNs(message->header.stamp);
-          sample.gyro = {message->angular_velocity.x, message->angular_velocity.y,
-                         message->angular_velocity.z};
-          sample.accel = {message->linear_acceleration.x, message->linear_acceleration.y,
-                          message->linear_acceleration.z};
-          on_imu(sample);
-        }));
+        topics.imu, 2000,
+        [on_imu](const sensor_msgs::ImuConstPtr& message) { on_imu(bag::imuSampleOf(*message)); }));
   }
   // One callback thread: the handlers see each topic's messages in arrival order.
   impl_->spinner = std::make_unique<ros::AsyncSpinner>(1);
@@ -177,9 +150,7 @@ void RosIo::publishPose(TimeNs t_ns, const SE3d& T_w_b, int path_every) {
   geometry_msgs::TransformStamped transform;
   transform.header = odometry.header;
   transform.child_frame_id = impl_->body_frame;
-  transform.transform.translation.x = T_w_b.t.x();
-  transform.transform.translation.y = T_w_b.t.y();
-  transform.transform.translation.z = T_w_b.t.z();
+  transform.transform.translation = bag::vector3Message(T_w_b.t);
   transform.transform.rotation = odometry.pose.pose.orientation;
   impl_->tf->sendTransform(transform);
 

@@ -9,6 +9,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "superdyna/bag/ros_conversions.h"
 #include "superdyna/core/error.h"
 
 namespace superdyna::bag {
@@ -16,12 +17,6 @@ namespace superdyna::bag {
 namespace fs = std::filesystem;
 
 namespace {
-
-ros::Time rosTime(TimeNs t_ns) {
-  ros::Time time;
-  time.fromNSec(static_cast<std::uint64_t>(t_ns));
-  return time;
-}
 
 std_msgs::Header header(TimeNs t_ns, const std::string& frame) {
   std_msgs::Header h;
@@ -53,12 +48,8 @@ sensor_msgs::Imu imuMessage(const sensors::ImuSample& sample, const std::string&
   sensor_msgs::Imu msg;
   msg.header = header(sample.t_ns, frame);
   msg.orientation_covariance[0] = -1.0;  // no orientation estimate
-  msg.angular_velocity.x = sample.gyro.x();
-  msg.angular_velocity.y = sample.gyro.y();
-  msg.angular_velocity.z = sample.gyro.z();
-  msg.linear_acceleration.x = sample.accel.x();
-  msg.linear_acceleration.y = sample.accel.y();
-  msg.linear_acceleration.z = sample.accel.z();
+  msg.angular_velocity = vector3Message(sample.gyro);
+  msg.linear_acceleration = vector3Message(sample.accel);
   return msg;
 }
 
@@ -66,17 +57,8 @@ nav_msgs::Odometry odometryMessage(const sensors::GroundTruthState& state) {
   nav_msgs::Odometry msg;
   msg.header = header(state.t_ns, "world");
   msg.child_frame_id = "body";
-  const Eigen::Quaterniond& q = state.T_w_b.q;
-  msg.pose.pose.position.x = state.T_w_b.t.x();
-  msg.pose.pose.position.y = state.T_w_b.t.y();
-  msg.pose.pose.position.z = state.T_w_b.t.z();
-  msg.pose.pose.orientation.w = q.w();
-  msg.pose.pose.orientation.x = q.x();
-  msg.pose.pose.orientation.y = q.y();
-  msg.pose.pose.orientation.z = q.z();
-  msg.twist.twist.linear.x = state.v_w.x();  // world frame, as the ground truth holds it
-  msg.twist.twist.linear.y = state.v_w.y();
-  msg.twist.twist.linear.z = state.v_w.z();
+  msg.pose.pose = poseMessage(state.T_w_b);
+  msg.twist.twist.linear = vector3Message(state.v_w);  // world frame, as the ground truth has it
   return msg;
 }
 
@@ -84,13 +66,8 @@ geometry_msgs::TransformStamped transformMessage(const sensors::GroundTruthState
   geometry_msgs::TransformStamped msg;
   msg.header = header(state.t_ns, "world");
   msg.child_frame_id = "body";
-  msg.transform.translation.x = state.T_w_b.t.x();
-  msg.transform.translation.y = state.T_w_b.t.y();
-  msg.transform.translation.z = state.T_w_b.t.z();
-  msg.transform.rotation.w = state.T_w_b.q.w();
-  msg.transform.rotation.x = state.T_w_b.q.x();
-  msg.transform.rotation.y = state.T_w_b.q.y();
-  msg.transform.rotation.z = state.T_w_b.q.z();
+  msg.transform.translation = vector3Message(state.T_w_b.t);
+  msg.transform.rotation = poseMessage(state.T_w_b).orientation;
   return msg;
 }
 

@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "superdyna/bag/ros_conversions.h"
 #include "superdyna/core/error.h"
 
 namespace superdyna::bag {
@@ -28,10 +29,6 @@ constexpr const char* kImuType = "sensor_msgs/Imu";
 constexpr const char* kOdometryType = "nav_msgs/Odometry";
 constexpr const char* kPoseStampedType = "geometry_msgs/PoseStamped";
 constexpr const char* kTransformStampedType = "geometry_msgs/TransformStamped";
-
-TimeNs stampNs(const ros::Time& stamp) {
-  return static_cast<TimeNs>(stamp.sec) * kNsPerSecond + static_cast<TimeNs>(stamp.nsec);
-}
 
 /// The OpenCV type and channel count of a raw image encoding; type -1 when unsupported.
 int cvTypeOf(const std::string& encoding) {
@@ -236,31 +233,20 @@ std::vector<TimeNs> RosbagReader::imageStamps(const std::string& name) const {
 
 namespace {
 
-SE3d poseOf(const geometry_msgs::Point& p, const geometry_msgs::Quaternion& q) {
-  return SE3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z),  // SE3d normalises
-              Eigen::Vector3d(p.x, p.y, p.z));
-}
-
 /// A ground-truth message (nav_msgs/Odometry, geometry_msgs/PoseStamped or TransformStamped) as a
 /// state; nullopt when it is none of them.
 std::optional<sensors::GroundTruthState> groundTruthState(const rosbag::MessageInstance& message) {
   sensors::GroundTruthState state;
   if (const auto odometry = message.instantiate<nav_msgs::Odometry>()) {
-    const auto& v = odometry->twist.twist.linear;
     state.t_ns = stampNs(odometry->header.stamp);
     state.T_w_b = poseOf(odometry->pose.pose.position, odometry->pose.pose.orientation);
-    state.v_w = Eigen::Vector3d(v.x, v.y, v.z);
+    state.v_w = vectorOf(odometry->twist.twist.linear);
   } else if (const auto pose = message.instantiate<geometry_msgs::PoseStamped>()) {
     state.t_ns = stampNs(pose->header.stamp);
     state.T_w_b = poseOf(pose->pose.position, pose->pose.orientation);
   } else if (const auto transform = message.instantiate<geometry_msgs::TransformStamped>()) {
-    const auto& t = transform->transform.translation;
-    geometry_msgs::Point p;
-    p.x = t.x;
-    p.y = t.y;
-    p.z = t.z;
     state.t_ns = stampNs(transform->header.stamp);
-    state.T_w_b = poseOf(p, transform->transform.rotation);
+    state.T_w_b = poseOf(transform->transform.translation, transform->transform.rotation);
   } else {
     return std::nullopt;
   }
@@ -336,12 +322,7 @@ std::vector<sensors::ImuSample> RosbagReader::imuSamples(const std::string& name
         throw InputError(fmt::format("{}: does not deserialise as {}",
                                      impl_->where(name, samples.size()), kImuType));
       }
-      sensors::ImuSample sample;
-      sample.t_ns = stampNs(imu->header.stamp);
-      sample.gyro = {imu->angular_velocity.x, imu->angular_velocity.y, imu->angular_velocity.z};
-      sample.accel = {imu->linear_acceleration.x, imu->linear_acceleration.y,
-                      imu->linear_acceleration.z};
-      samples.push_back(sample);
+      samples.push_back(imuSampleOf(*imu));
     }
   } catch (const rosbag::BagException& e) {
     throw InputError(InputLocation{impl_->path}, fmt::format("topic {}: {}", name, e.what()));

@@ -68,6 +68,34 @@ struct VinsFile {
   }
 };
 
+/// Where a VINS camera model keeps its parameters (camodocal's key names).
+struct VinsModel {
+  const char* name;
+  DistortionModel distortion;
+  const char* intrinsics[4];  ///< fx, fy, cx, cy in projection_parameters.
+  const char* distortion_node;
+  const char* coefficients[4];  ///< In DistortionModel's order.
+};
+
+constexpr VinsModel kVinsModels[] = {
+    {"PINHOLE",
+     DistortionModel::kRadialTangential,
+     {"fx", "fy", "cx", "cy"},
+     "distortion_parameters",
+     {"k1", "k2", "p1", "p2"}},
+    {"KANNALA_BRANDT",
+     DistortionModel::kEquidistant,
+     {"mu", "mv", "u0", "v0"},
+     "projection_parameters",
+     {"k2", "k3", "k4", "k5"}},
+};
+
+const VinsModel* vinsModel(const std::string& name) {
+  for (const VinsModel& model : kVinsModels)
+    if (name == model.name) return &model;
+  return nullptr;
+}
+
 /// One camera: its model file (relative to the config) and its pose in the body frame.
 sensors::CameraCalibration readVinsCamera(const VinsFile& config, int index, double rate_hz) {
   const std::string calib_key = fmt::format("cam{}_calib", index);
@@ -82,29 +110,19 @@ sensors::CameraCalibration readVinsCamera(const VinsFile& config, int index, dou
   calibration.width = static_cast<int>(camera.number("image_width"));
   calibration.height = static_cast<int>(camera.number("image_height"));
   const std::string model = camera.text("model_type");
-  if (model == "PINHOLE") {
-    const cv::FileNode p = camera.node("projection_parameters");
-    const cv::FileNode d = camera.node("distortion_parameters");
-    calibration.fx = camera.number(p, "fx");
-    calibration.fy = camera.number(p, "fy");
-    calibration.cx = camera.number(p, "cx");
-    calibration.cy = camera.number(p, "cy");
-    calibration.distortion_model = DistortionModel::kRadialTangential;
-    calibration.distortion = {camera.number(d, "k1"), camera.number(d, "k2"),
-                              camera.number(d, "p1"), camera.number(d, "p2")};
-  } else if (model == "KANNALA_BRANDT") {
-    const cv::FileNode p = camera.node("projection_parameters");
-    calibration.fx = camera.number(p, "mu");
-    calibration.fy = camera.number(p, "mv");
-    calibration.cx = camera.number(p, "u0");
-    calibration.cy = camera.number(p, "v0");
-    calibration.distortion_model = DistortionModel::kEquidistant;
-    calibration.distortion = {camera.number(p, "k2"), camera.number(p, "k3"),
-                              camera.number(p, "k4"), camera.number(p, "k5")};
-  } else {
+  const VinsModel* format = vinsModel(model);
+  if (!format) {
     throw InputError(InputLocation{file, 0, "model_type"},
                      fmt::format("'{}' is not supported (PINHOLE, KANNALA_BRANDT)", model));
   }
+  const cv::FileNode projection = camera.node("projection_parameters");
+  const cv::FileNode coefficients = camera.node(format->distortion_node);
+  double* intrinsics[4] = {&calibration.fx, &calibration.fy, &calibration.cx, &calibration.cy};
+  for (int k = 0; k < 4; ++k)
+    *intrinsics[k] = camera.number(projection, format->intrinsics[k]);
+  calibration.distortion_model = format->distortion;
+  for (const char* key : format->coefficients)
+    calibration.distortion.push_back(camera.number(coefficients, key));
   validateCameraCalibration(calibration, InputLocation{file});
   return calibration;
 }
