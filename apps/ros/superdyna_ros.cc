@@ -196,8 +196,8 @@ class Publisher {
       ros_.publishPose(result.t_ns, result.T_w_b, /*path_every=*/10);
       ++published_;
     }
-    std::optional<system::FrameOverlay> overlay = overlays_.draw(result);
-    if (overlay && ros_.overlayWanted()) ros_.publishOverlay(result.t_ns, overlay->image);
+    if (std::optional<system::FrameOverlay> overlay = overlays_.draw(result))
+      ros_.publishOverlay(result.t_ns, overlay->image);
     if (result.keyframe && ++keyframes_ % settings_.map_points_every == 0 &&
         ros_.mapPointsWanted()) {
       ros_.publishMapPoints(result.t_ns, colouredMapPoints(slam));
@@ -275,7 +275,7 @@ int runNode(int argc, char** argv) {
                                  options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
                                      options.tracker.dynamic.geometric);
   slam.setFrontEndCallback([&](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
-    overlays.remember(bundle, frame);
+    if (ros.overlayWanted()) overlays.remember(bundle, frame);  // drawn only when subscribed
   });
   FrameQueue queue(static_cast<std::size_t>(settings.frame_queue));
   MessageIntake intake({.stereo = stereo, .inertial = inertial}, queue);
