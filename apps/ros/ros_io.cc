@@ -1,7 +1,6 @@
 #include "ros_io.h"
 
 #include <cv_bridge/cv_bridge.h>
-#include <fmt/format.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <nav_msgs/Path.h>
