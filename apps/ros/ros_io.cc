@@ -12,6 +12,7 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_ros/transform_broadcaster.h>
 
+#include <algorithm>
 #include <atomic>
 #include <mutex>
 #include <set>
@@ -33,6 +34,7 @@ struct RosIo::Impl {
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf;
   std::string world_frame, body_frame;
   nav_msgs::Path path_message;
+  std::size_t poses_seen = 0;
   std::atomic<std::size_t> conversion_errors{0};
   std::mutex reported_mutex;
   std::set<std::string> reported_topics;
@@ -153,15 +155,16 @@ void RosIo::publishPose(TimeNs t_ns, const SE3d& T_w_b, int path_every) {
   transform.transform.rotation = odometry.pose.pose.orientation;
   impl_->tf->sendTransform(transform);
 
+  // The path keeps every path_every-th pose (its messages grow with the run) and is published
+  // when one joins.
+  if (impl_->poses_seen++ % static_cast<std::size_t>(std::max(path_every, 1)) != 0) return;
   geometry_msgs::PoseStamped pose;
   pose.header = odometry.header;
   pose.pose = odometry.pose.pose;
   nav_msgs::Path& path = impl_->path_message;
   path.poses.push_back(pose);
-  if (path_every <= 1 || path.poses.size() % static_cast<std::size_t>(path_every) == 1) {
-    path.header.stamp = odometry.header.stamp;
-    impl_->path.publish(path);
-  }
+  path.header.stamp = odometry.header.stamp;
+  impl_->path.publish(path);
 }
 
 void RosIo::republishPath(const std::vector<std::pair<TimeNs, SE3d>>& poses) {

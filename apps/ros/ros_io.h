@@ -64,8 +64,8 @@ class RosIo {
   /// `world_frame` -> `body_frame`.
   void advertise(const std::string& world_frame, const std::string& body_frame);
 
-  /// Odometry and tf of the body at t_ns; the pose joins the path (published every
-  /// `path_every`-th pose).
+  /// Odometry and tf of the body at t_ns; every `path_every`-th pose joins the path, which is
+  /// then published.
   void publishPose(TimeNs t_ns, const SE3d& T_w_b, int path_every);
   /// Replaces the path's poses (after a change of the world frame) and publishes it.
   void republishPath(const std::vector<std::pair<TimeNs, SE3d>>& poses);

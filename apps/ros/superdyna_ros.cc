@@ -184,6 +184,9 @@ bool hasPose(const tracking::TrackingResult& result) {
          result.state == tracking::TrackingState::kLocalizing;
 }
 
+/// Frames per pose of the published path (the odometry has them all).
+constexpr int kPathEvery = 10;
+
 /// Publishes what one processed frame gives.
 class Publisher {
  public:
@@ -193,7 +196,7 @@ class Publisher {
   void publish(const tracking::TrackingResult& result, const system::System& slam) {
     if (result.world_change) republishPath(result.t_ns, slam);
     if (hasPose(result)) {
-      ros_.publishPose(result.t_ns, result.T_w_b, /*path_every=*/10);
+      ros_.publishPose(result.t_ns, result.T_w_b, kPathEvery);
       ++published_;
     }
     if (std::optional<system::FrameOverlay> overlay = overlays_.draw(result))
@@ -211,8 +214,9 @@ class Publisher {
   /// odometry published so far is in the old frame; the path is re-published in the new one.
   void republishPath(TimeNs t_ns, const system::System& slam) {
     std::vector<std::pair<TimeNs, SE3d>> poses;
-    for (const StampedPose& pose : slam.onlineTrajectory())
-      poses.emplace_back(pose.t_ns, pose.T_w_x);
+    const Trajectory online = slam.onlineTrajectory();
+    for (std::size_t i = 0; i < online.size(); i += kPathEvery)
+      poses.emplace_back(online[i].t_ns, online[i].T_w_x);
     ros_.republishPath(poses);
     fmt::print(
         "superdyna_ros: world frame changed at {} ns (inertial initialisation); the path is "
