@@ -1,7 +1,5 @@
 #include "superdyna/bag/sequence_bag_writer.h"
 
-#include <fmt/format.h>
-
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
