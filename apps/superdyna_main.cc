@@ -13,6 +13,7 @@
 #include "commands/info_command.h"
 #include "commands/run_command.h"
 #include "commands/simulate_command.h"
+#include "commands/sweep_command.h"
 #include "superdyna/core/error.h"
 
 namespace {
@@ -45,6 +46,7 @@ int main(int argc, char** argv) {
   commands.push_back(superdyna::apps::makeInfoCommand(app));
   commands.push_back(superdyna::apps::makeDemoCommand(app));
   commands.push_back(superdyna::apps::makeRunCommand(app));
+  commands.push_back(superdyna::apps::makeSweepCommand(app));
 
   try {
     app.parse(argc, argv);

@@ -28,6 +28,9 @@ packages=(
   # rospy and rosbag play; RViz and Xvfb for the live view and its screenshot
   libroscpp-dev libtf2-ros-dev libcv-bridge-dev libgeometry-msgs-dev python3-rosmaster
   python3-roslaunch python3-rospy python3-sensor-msgs python3-nav-msgs rviz xvfb
+  # superdyna sweep: GNU parallel and a single-node Slurm cluster (scripts/slurm_local_cluster.sh)
+  # to dispatch cells, headless Chromium to check the HTML report
+  parallel munge slurmctld slurmd slurm-client chromium
 )
 
 missing_packages() {

@@ -40,6 +40,7 @@ struct EvalArguments {
   std::string rpe_unit = "m";
   std::optional<fs::path> json;
   std::optional<fs::path> plot;
+  std::string plot_plane = "auto";
   std::optional<fs::path> alignment;       ///< A report whose alignment is applied unchanged.
   std::optional<fs::path> alignment_from;  ///< Another run's estimate to align ...
   std::optional<fs::path> alignment_gt;    ///< ... to its ground truth.
@@ -97,6 +98,11 @@ class EvalCommand : public Command {
     sub_->add_option("--json", args_.json, "Write the results as JSON to this file");
     sub_->add_option("--plot", args_.plot,
                      "Write a top-view plot (ground truth and aligned estimates), .svg or .png");
+    sub_->add_option("--plot-plane", args_.plot_plane,
+                     "Plane of the top view: xy, xz, yz, or auto (the ground truth's two axes "
+                     "of largest extent: x-y for EuRoC and TUM, x-z for KITTI's camera frame)")
+        ->check(CLI::IsMember({"auto", "xy", "xz", "yz"}))
+        ->capture_default_str();
     auto* given = sub_->add_option(
         "--alignment", args_.alignment,
         "Apply this alignment unchanged instead of estimating one: the 'alignment' (R, t, s) of "
@@ -207,13 +213,19 @@ class EvalCommand : public Command {
     return io::readTrajectory(file, read);
   }
 
+  eval::PlotOptions plotOptions() const {
+    eval::PlotOptions options;
+    options.plane = eval::parsePlotPlane(args_.plot_plane);
+    return options;
+  }
+
   void reportSingle(const Trajectory& gt, const eval::EvaluationResult& result,
                     const std::string& name) const {
     fmt::print("{}", eval::formatTable(result));
     if (args_.json) writeJson(*args_.json, eval::toJson(result));
     if (args_.plot) {
       eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"),
-                             {eval::alignedEstimateSeries(result, name)});
+                             {eval::alignedEstimateSeries(result, name)}, plotOptions());
       spdlog::info("plot written to {}", args_.plot->string());
     }
   }
@@ -226,7 +238,8 @@ class EvalCommand : public Command {
       for (const auto& run : runs.runs) {
         series.push_back(eval::alignedEstimateSeries(run.result, run.name));
       }
-      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"), series);
+      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"), series,
+                             plotOptions());
       spdlog::info("plot written to {}", args_.plot->string());
     }
   }

@@ -80,6 +80,39 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       busy(t.busy.loop_ms));
 }
 
+/// The numbers `run` prints at the end, for tools (superdyna sweep): per-frame means in ms,
+/// thread CPU times in s.
+nlohmann::json runStatsJson(const system::System& slam, bool stopped) {
+  const system::TimingSummary& t = slam.timings();
+  const auto mean = [&](double total_ms) { return t.meanMs(total_ms); };
+  return {
+      {"frames", t.frames},
+      {"stopped", stopped},
+      {"wall_s", t.wall_s},
+      {"fps", t.framesPerSecond()},
+      {"lost_frames", slam.lostFrames()},
+      {"map_resets", slam.resets()},
+      {"relocalizations", slam.relocalizations()},
+      {"keyframes", t.keyframes},
+      {"deterministic", slam.options().deterministic},
+      {"mean_ms_per_frame",
+       {{"extract", mean(t.total.extract_ms)},
+        {"stereo", mean(t.total.stereo_ms)},
+        {"track", mean(t.total.track_ms)},
+        {"moving_objects", mean(t.total.moving_objects_ms)},
+        {"keyframe_local_ba", mean(t.total.local_ba_ms)},
+        {"segment", mean(t.segment_ms)},
+        {"propagate_masks", mean(t.propagate_ms)}}},
+      {"thread_cpu_s",
+       {{"front_end", t.busy.front_end_ms / 1e3},
+        {"extraction_helper", t.busy.extraction_helper_ms / 1e3},
+        {"segmentation", t.busy.segmentation_ms / 1e3},
+        {"tracking", t.busy.tracking_ms / 1e3},
+        {"local_mapping", t.busy.mapping_ms / 1e3},
+        {"loop_closing", t.busy.loop_ms / 1e3}}},
+  };
+}
+
 void printSegmentation(const system::TimingSummary& t) {
   const auto mean = [](double total_ms, std::size_t n) { return n > 0 ? total_ms / n : 0.0; };
   fmt::print(
@@ -409,6 +442,10 @@ class RunCommand : public Command {
                      "the objects the IMU-predicted motion test finds moving); needs labelled "
                      "keypoints (--instance-masks or --segmenter)")
         ->check(CLI::IsMember({"off", "semantic", "semantic-geometric"}));
+    sub_->add_option("--stats", stats_,
+                     "Also write the run's numbers as JSON: frames, wall time, FPS, lost frames, "
+                     "map resets, keyframes, mean ms per stage, CPU time per thread (superdyna "
+                     "sweep reads it)");
     sub_->add_option("--dynamic-log", dynamic_log_,
                      "Also write a CSV row per movable object per frame: "
                      "t_ns,instance_id,class,pairs,tested,max_distance_px,threshold_px,decision,"
@@ -544,6 +581,16 @@ class RunCommand : public Command {
     if (dynamic_log_) requireDistinctOutput(*dynamic_log_, {*config_}, "--dynamic-log");
   }
 
+  /// --stats is written beside the other outputs, never over one of them or an input.
+  void refuseStatsPath(const fs::path& keyframes_path, const fs::path& config_path) const {
+    refuseOutputInsideDataset(*stats_, "--stats");
+    std::vector<fs::path> others = {output_, keyframes_path, config_path};
+    for (const auto& other : {config_, online_, frame_log_, dynamic_log_, save_map_, load_map_}) {
+      if (other) others.push_back(*other);
+    }
+    requireDistinctOutput(*stats_, others, "--stats");
+  }
+
   /// --load-map / --localization-only / --save-map go together as documented; the map file is
   /// never written over an input or another output.
   void checkMapOptions(const fs::path& keyframes_path, const fs::path& config_path) const {
@@ -594,6 +641,7 @@ class RunCommand : public Command {
     const fs::path config_path = configPath(keyframes_path);
     refuseOutputOntoConfig(keyframes_path);
     checkMapOptions(keyframes_path, config_path);
+    if (stats_) refuseStatsPath(keyframes_path, config_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
     options.mode = system::parseSensorMode(mode_);
@@ -716,6 +764,7 @@ class RunCommand : public Command {
     io::writeTrajectory(keyframes_path, keyframes, format);
     if (online_) io::writeTrajectory(*online_, slam.onlineTrajectory(), format);
     if (save_map_) saveMap(slam);
+    if (stats_) writeJson(*stats_, runStatsJson(slam, stopped_by != 0));
     fmt::print(
         "{} frames in {:.2f} s ({:.1f} FPS); lost frames {}, map resets {}, relocalisations {}; "
         "wrote {} and {} ({} keyframes)\n",
@@ -765,6 +814,7 @@ class RunCommand : public Command {
   std::optional<fs::path> frame_log_;
   std::optional<fs::path> online_;
   std::optional<fs::path> dynamic_log_;
+  std::optional<fs::path> stats_;
   std::optional<std::string> dynamic_;
   std::string format_ = "tum";
   std::size_t max_frames_ = 0;

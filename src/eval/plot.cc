@@ -67,6 +67,7 @@ struct Layout {
   double px_per_m = 1.0;
   double x0 = 0.0, y0 = 0.0;  // metres at the plot area's left and bottom edges
   double tick_step_m = 1.0;
+  std::string x_axis = "x", y_axis = "y";  // the plot plane's axes
 
   double pixelX(double x_m) const { return left + (x_m - x0) * px_per_m; }
   double pixelY(double y_m) const { return top + area_height - (y_m - y0) * px_per_m; }
@@ -142,6 +143,25 @@ std::string tickLabel(double value_m, double step_m) {
   const int decimals = step_m >= 1.0 ? 0 : static_cast<int>(std::ceil(-std::log10(step_m) - 1e-9));
   if (std::abs(value_m) < 0.5 * step_m) value_m = 0.0;  // no "-0"
   return fmt::format("{:.{}f}", value_m, decimals);
+}
+
+/// The series in the plane's coordinates: its two axes become x and y.
+PlotSeries projectOnto(const PlotSeries& series, PlotPlane plane) {
+  PlotSeries projected{series.label, {}};
+  projected.positions.reserve(series.positions.size());
+  for (const Eigen::Vector3d& p : series.positions) {
+    switch (plane) {
+      case PlotPlane::kXZ:
+        projected.positions.emplace_back(p.x(), p.z(), 0.0);
+        break;
+      case PlotPlane::kYZ:
+        projected.positions.emplace_back(p.y(), p.z(), 0.0);
+        break;
+      default:
+        projected.positions.emplace_back(p.x(), p.y(), 0.0);
+    }
+  }
+  return projected;
 }
 
 std::vector<Eigen::Vector2d> toPixels(const PlotSeries& series, const Layout& layout) {
@@ -224,9 +244,9 @@ std::string svgAxes(const Layout& l, const std::string& title) {
       "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
       "fill=\"none\" stroke=\"black\" stroke-width=\"1\"/>\n",
       l.left, l.top, l.area_width, l.area_height);
-  out += svgText(l.left + 0.5 * l.area_width, l.height - 18, "x [m]", "middle", 14);
+  out += svgText(l.left + 0.5 * l.area_width, l.height - 18, l.x_axis + " [m]", "middle", 14);
   const double label_y = l.top + 0.5 * l.area_height;
-  out += svgText(22, label_y, "y [m]", "middle", 14,
+  out += svgText(22, label_y, l.y_axis + " [m]", "middle", 14,
                  fmt::format(" transform=\"rotate(-90 22 {:.1f})\"", label_y));
   out += svgText(0.5 * l.width, 30, title, "middle", 16, " font-weight=\"bold\"");
   return out;
@@ -313,8 +333,8 @@ void drawCvAxes(cv::Mat& image, const Layout& l, const std::string& title) {
     cvText(image, tickLabel(y, l.tick_step_m), l.left - 8, py + 4, "end");
   }
   cv::rectangle(image, {left, top}, {right, bottom}, kBlack.bgr(), 1);
-  cvText(image, "x [m]", l.left + 0.5 * l.area_width, l.height - 18, "middle", 0.55);
-  cvText(image, "y [m]", 8, l.top - 10, "start", 0.55);  // Hershey text cannot be rotated
+  cvText(image, l.x_axis + " [m]", l.left + 0.5 * l.area_width, l.height - 18, "middle", 0.55);
+  cvText(image, l.y_axis + " [m]", 8, l.top - 10, "start", 0.55);  // Hershey text cannot be rotated
   cvText(image, title, 0.5 * l.width, 30, "middle", 0.65);
 }
 
@@ -387,23 +407,70 @@ PlotSeries alignedEstimateSeries(const EvaluationResult& result, const std::stri
   return series;
 }
 
+PlotPlane parsePlotPlane(const std::string& name) {
+  if (name == "auto") return PlotPlane::kAuto;
+  if (name == "xy") return PlotPlane::kXY;
+  if (name == "xz") return PlotPlane::kXZ;
+  if (name == "yz") return PlotPlane::kYZ;
+  throw OptionError("plot plane", fmt::format("'{}' is not auto, xy, xz or yz", name));
+}
+
+std::string toString(PlotPlane plane) {
+  switch (plane) {
+    case PlotPlane::kXY:
+      return "x-y";
+    case PlotPlane::kXZ:
+      return "x-z";
+    case PlotPlane::kYZ:
+      return "y-z";
+    case PlotPlane::kAuto:
+      break;
+  }
+  return "auto";
+}
+
+PlotPlane groundPlane(const PlotSeries& series) {
+  if (series.positions.empty()) return PlotPlane::kXY;
+  Eigen::Vector3d lo = series.positions.front(), hi = lo;
+  for (const Eigen::Vector3d& p : series.positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d extent = hi - lo;
+  // Leave out the axis of least extent (ties keep z out, then y).
+  if (extent.z() <= extent.x() && extent.z() <= extent.y()) return PlotPlane::kXY;
+  if (extent.y() <= extent.x()) return PlotPlane::kXZ;
+  return PlotPlane::kYZ;
+}
+
 void writeTopViewPlot(const std::filesystem::path& file, const PlotSeries& ground_truth,
                       const std::vector<PlotSeries>& estimates, const PlotOptions& options) {
   const ImageFormat format = formatFromExtension(file);
   options.validate();
-  std::vector<const PlotSeries*> all{&ground_truth};
+  const PlotPlane plane =
+      options.plane == PlotPlane::kAuto ? groundPlane(ground_truth) : options.plane;
+  const PlotSeries gt = projectOnto(ground_truth, plane);
+  std::vector<PlotSeries> projected;
   for (const PlotSeries& s : estimates)
+    projected.push_back(projectOnto(s, plane));
+  std::vector<const PlotSeries*> all{&gt};
+  for (const PlotSeries& s : projected)
     all.push_back(&s);
   const bool has_points = std::any_of(all.begin(), all.end(),
                                       [](const PlotSeries* s) { return !s->positions.empty(); });
   if (!has_points) throw InputError(InputLocation(file), "nothing to plot: every series is empty");
 
-  const Layout layout = computeLayout(all, options);
-  const std::vector<DrawnSeries> series = drawnSeries(ground_truth, estimates, layout);
+  Layout layout = computeLayout(all, options);
+  const std::string axes = toString(plane);
+  layout.x_axis = axes.substr(0, 1);
+  layout.y_axis = axes.substr(2, 1);
+  PlotOptions titled = options;
+  titled.title = fmt::format("{} ({})", options.title, axes);
+  const std::vector<DrawnSeries> series = drawnSeries(gt, projected, layout);
   if (format == ImageFormat::kSvg) {
-    writeSvg(file, series, layout, options);
+    writeSvg(file, series, layout, titled);
   } else {
-    writePng(file, series, layout, options);
+    writePng(file, series, layout, titled);
   }
 }
 

@@ -66,7 +66,18 @@ std::optional<int> segmentNumber(const TextRow& row, const fs::path& file) {
   return static_cast<int>(number);
 }
 
-Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment) {
+/// A TUM time column written in nanoseconds, possibly with a fraction ("1403636579763555584.0").
+TimeNs parseNanosecondsField(std::string_view field, const InputLocation& where) {
+  const double ns = parseFiniteDouble(field, where);
+  // 9.2e18 ns is int64's limit (year 2262); a time in seconds given by mistake stays far below
+  // 1e12.
+  if (ns < 0.0 || ns > 9.2e18) {
+    throw InputError(where, fmt::format("'{}' is not a time in nanoseconds", field));
+  }
+  return static_cast<TimeNs>(std::llround(ns));
+}
+
+Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment, bool time_in_ns) {
   Trajectory trajectory;
   std::optional<int> segment;
   std::vector<int> segments_seen;
@@ -81,7 +92,8 @@ Trajectory readTum(const fs::path& file, std::optional<int> wanted_segment) {
     if (trajectory.empty() && !startsWithNumber(row)) return true;  // column-name header line
     if (wanted_segment && segment != wanted_segment) return true;
     requireFieldCount(row, file, 8, 8);
-    const TimeNs t_ns = parseSecondsField(row.fields[0], row.at(file, "timestamp"));
+    const TimeNs t_ns = time_in_ns ? parseNanosecondsField(row.fields[0], row.at(file, "timestamp"))
+                                   : parseSecondsField(row.fields[0], row.at(file, "timestamp"));
     const auto v = parseNumbers(row, file, 1, {"tx", "ty", "tz", "qx", "qy", "qz", "qw"});
     const auto q = checkedQuaternion(v[6], v[3], v[4], v[5], row.at(file, "quaternion"));
     trajectory.push_back({t_ns, SE3d(q, Eigen::Vector3d(v[0], v[1], v[2]))});
@@ -193,10 +205,13 @@ Trajectory readTrajectory(const fs::path& file, const TrajectoryReadOptions& opt
   if (!fs::exists(file)) throw InputError(InputLocation{file}, "file does not exist");
   const TrajectoryFormat format =
       options.format == TrajectoryFormat::kAuto ? detectTrajectoryFormat(file) : options.format;
+  if (options.tum_time_in_ns && format != TrajectoryFormat::kTum) {
+    throw OptionError("time unit", "nanosecond time columns are read only from TUM-format files");
+  }
   Trajectory trajectory;
   switch (format) {
     case TrajectoryFormat::kTum:
-      trajectory = readTum(file, options.segment);
+      trajectory = readTum(file, options.segment, options.tum_time_in_ns);
       break;
     case TrajectoryFormat::kEuroc:
       trajectory = readEuroc(file);

@@ -140,6 +140,28 @@ TEST(ReportTest, WritesSvgAndPngPlots) {
   EXPECT_LT(cv::countNonZero(grey == 255), 640 * 480);
 }
 
+TEST(ReportTest, TopViewShowsTheGroundPlane) {
+  test::ScratchDir dir("eval_plot_plane");
+  // A KITTI-like drive in the camera frame: forward along z, turning along x, y (down) flat.
+  PlotSeries kitti{"gt", {}};
+  for (int i = 0; i < 100; ++i) {
+    kitti.positions.emplace_back(20.0 * std::sin(0.02 * i), 0.1 * std::sin(0.3 * i), 0.5 * i);
+  }
+  EXPECT_EQ(groundPlane(kitti), PlotPlane::kXZ);
+  writeTopViewPlot(dir / "kitti.svg", kitti, {});
+  const std::string svg = test::readFile(dir / "kitti.svg");
+  EXPECT_NE(svg.find("Top view (x-z)"), std::string::npos);
+  EXPECT_NE(svg.find("z [m]"), std::string::npos);
+  EXPECT_EQ(groundPlane(toPlotSeries(circle(), "gt")), PlotPlane::kXY);  // z up
+  PlotSeries wall{"gt", {{0, 0, 0}, {0, 3, 1}, {0, 6, 0}}};
+  EXPECT_EQ(groundPlane(wall), PlotPlane::kYZ);
+  PlotOptions forced;
+  forced.plane = parsePlotPlane("xy");
+  writeTopViewPlot(dir / "forced.svg", kitti, {}, forced);
+  EXPECT_NE(test::readFile(dir / "forced.svg").find("Top view (x-y)"), std::string::npos);
+  EXPECT_THROW(parsePlotPlane("top"), OptionError);
+}
+
 TEST(ReportTest, PlotErrors) {
   test::ScratchDir dir("eval_plot_errors");
   const PlotSeries gt = toPlotSeries(circle(), "gt");

@@ -78,6 +78,31 @@ TEST(TrajectoryIoTest, RejectsSegmentNumbersThatAreNotWholeNumbers) {
   EXPECT_EQ(readTrajectory(file, options).size(), 1u);
 }
 
+TEST(TrajectoryIoTest, ReadsTumFilesWithNanosecondTimesAsOrbSlam3WritesThem) {
+  ScratchDir dir("trajectory_tum_ns");
+  // ORB-SLAM3's SaveTrajectoryEuRoC: TUM columns, the time as a fixed-point nanosecond count.
+  writeFile(dir / "f_orbslam3.txt",
+            "1403636579763555584.000000 0.1 0.2 0.3 0 0 0 1\n"
+            "1403636579813555456.000000 0.2 0.2 0.3 0 0 0 1\n");
+  TrajectoryReadOptions options;
+  options.format = TrajectoryFormat::kTum;
+  options.tum_time_in_ns = true;
+  const Trajectory t = readTrajectory(dir / "f_orbslam3.txt", options);
+  ASSERT_EQ(t.size(), 2u);
+  // Doubles hold these times to 256 ns; the association tolerance is milliseconds.
+  EXPECT_NEAR(static_cast<double>(t[0].t_ns), 1403636579763555584.0, 256.0);
+  EXPECT_NEAR(static_cast<double>(t[1].t_ns - t[0].t_ns), 50e6, 512.0);
+  // Read as seconds, the same file overflows the nanosecond clock: refused, not wrapped.
+  EXPECT_THROW(readTrajectory(dir / "f_orbslam3.txt"), InputError);
+  options.format = TrajectoryFormat::kEuroc;
+  test::expectError<OptionError>([&] { readTrajectory(dir / "f_orbslam3.txt", options); },
+                                 {"nanosecond", "TUM"});
+  writeFile(dir / "negative.txt", "-5 0 0 0 0 0 0 1\n");
+  options.format = TrajectoryFormat::kTum;
+  test::expectError([&] { readTrajectory(dir / "negative.txt", options); },
+                    {"negative.txt:1", "not a time in nanoseconds"});
+}
+
 TEST(TrajectoryIoTest, ReadsOpenLorisSegments) {
   SUPERDYNA_REQUIRE_SHARED(market, "data/trajectories/openloris/market_1.txt");
   const Trajectory all = readTrajectory(market);

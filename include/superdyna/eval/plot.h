@@ -1,6 +1,6 @@
 #pragma once
-// Top view (x-y plane) of the ground truth and aligned estimates, the figure every SLAM paper
-// shows. Written as SVG (vector, for papers) or PNG (OpenCV), chosen by the file extension.
+// Top view (the ground plane) of the ground truth and aligned estimates, the figure every SLAM
+// paper shows. Written as SVG (vector, for papers) or PNG (OpenCV), chosen by the file extension.
 // Axes are in metres with equal aspect, so shapes and drift are not distorted.
 
 #include <Eigen/Core>
@@ -13,7 +13,7 @@
 
 namespace superdyna::eval {
 
-/// A named polyline of positions in metres (only x and y are drawn).
+/// A named polyline of positions in metres (the two axes of the plot's plane are drawn).
 struct PlotSeries {
   std::string label;
   std::vector<Eigen::Vector3d> positions;
@@ -24,10 +24,22 @@ PlotSeries toPlotSeries(const Trajectory& trajectory, const std::string& label);
 /// The aligned estimate positions of an evaluation (in the ground-truth frame).
 PlotSeries alignedEstimateSeries(const EvaluationResult& result, const std::string& label);
 
+/// The plane a top view shows. The ground plane is x-y where z is up (EuRoC, TUM, the
+/// simulator) and x-z in a camera frame with y down (KITTI's poses); kAuto takes the two axes
+/// along which the ground truth extends furthest, which is the ground plane of any vehicle or
+/// walking path (they move far more horizontally than vertically).
+enum class PlotPlane { kAuto, kXY, kXZ, kYZ };
+/// "auto", "xy", "xz", "yz"; OptionError otherwise.
+PlotPlane parsePlotPlane(const std::string& name);
+std::string toString(PlotPlane plane);  ///< "x-y", "x-z", "y-z" ("auto" for kAuto).
+/// kAuto resolved for `series`: the two axes of largest extent (x-y when it is empty).
+PlotPlane groundPlane(const PlotSeries& series);
+
 struct PlotOptions {
-  int width = 1000;  ///< Image width in pixels (SVG: user units), >= 200.
-  int height = 800;  ///< Image height in pixels, >= 200.
-  std::string title = "Top view (x-y)";
+  int width = 1000;                    ///< Image width in pixels (SVG: user units), >= 200.
+  int height = 800;                    ///< Image height in pixels, >= 200.
+  std::string title = "Top view";      ///< The plane is appended: "Top view (x-z)".
+  PlotPlane plane = PlotPlane::kAuto;  ///< kAuto: the ground truth's groundPlane().
 
   /// Throws OptionError for sizes below 200 or above 20000 pixels.
   void validate() const;

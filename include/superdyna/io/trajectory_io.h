@@ -33,6 +33,9 @@ struct TrajectoryReadOptions {
   std::optional<std::filesystem::path> kitti_times;
   /// TUM only: read just the rows after the line "seq: N" (OpenLORIS multi-recording files).
   std::optional<int> segment;
+  /// TUM only: the first column is in nanoseconds, not seconds (ORB-SLAM3 writes its EuRoC
+  /// trajectories so, e.g. "1403636579763555584.000000"; rounded to the nearest nanosecond).
+  bool tum_time_in_ns = false;
 };
 
 /// Reads and validates a trajectory: every row well-formed and finite, quaternions of unit norm
