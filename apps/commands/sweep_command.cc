@@ -87,7 +87,7 @@ class SweepCommand : public Command {
       throw OptionError("--task", fmt::format("'{}' is not a task of this sweep", task));
     }
     if (kind == "sequence") {
-      sweep::prepareSequence(plan.sequences[index], sweep::buildRevision());
+      sweep::prepareSequence(plan, plan.sequences[index], sweep::buildRevision());
       fmt::print("sequence {} ready\n", plan.sequences[index].name);
       return 0;
     }
@@ -118,7 +118,7 @@ class SweepCommand : public Command {
     sweep::dispatchTasks(tasks, "sequences", dispatch_, [&](const std::string& task) {
       const auto& s = plan.sequences[std::stoul(task.substr(task.find(':') + 1))];
       try {
-        sweep::prepareSequence(s, sweep::buildRevision());
+        sweep::prepareSequence(plan, s, sweep::buildRevision());
         const std::lock_guard lock(print);
         fmt::print("sequence {} simulated\n", s.name);
       } catch (const std::exception& e) {

@@ -229,6 +229,7 @@ std::string buildRevision() {
 SweepPlan planSweep(const SweepSpec& spec, const fs::path& out, const fs::path& superdyna) {
   SweepPlan plan;
   plan.out = fs::absolute(out);
+  plan.spec_dir = spec.file.parent_path();
   plan.superdyna = superdyna;
   for (const SequenceSpec& s : spec.sequences) {
     SequenceTask task;
@@ -318,14 +319,14 @@ bool cellNeeded(const SweepSpec& spec, const SweepPlan& plan, const CellTask& ce
   }
 }
 
-void prepareSequence(const SequenceTask& task, const std::string& revision) {
+void prepareSequence(const SweepPlan& plan, const SequenceTask& task, const std::string& revision) {
   if (!sequenceNeeded(task)) return;
   fs::remove(task.marker);
   fs::remove_all(task.dataset);  // a simulation killed halfway
   fs::create_directories(task.dataset.parent_path());
   const fs::path log = task.marker.parent_path() / (task.name + ".log");
   fs::remove(log);
-  const ProcessResult p = runProcess(task.simulate, log, task.dataset.parent_path());
+  const ProcessResult p = runProcess(task.simulate, log, plan.spec_dir);
   if (!p.ok()) {
     throw InputError(InputLocation(log), fmt::format("simulating sequence '{}' failed ({}):\n{}",
                                                      task.name, p.describe(), tailOfFile(log, 15)));
@@ -355,7 +356,8 @@ CellResult runCell(const SweepSpec& spec, const SweepPlan& plan, const CellTask&
   result.run = cell.run;
   result.cell_hash = cellHash(spec, plan, cell);
   writeCellRecord(cell, command, result.cell_hash, revision);
-  const ProcessResult p = runProcess(command, cell.dir / "log.txt", cell.dir);
+  const ProcessResult p =
+      runProcess(command, cell.dir / "log.txt", c.external() ? cell.dir : plan.spec_dir);
   result.wall_s = p.wall_s;
   result.cpu_s = p.cpu_s;
   result.peak_rss_mb = p.peak_rss_mb;

@@ -8,7 +8,8 @@
 #  2. the peer is scored in the same ATE table as our configs;
 #  3. the HTML report opens in headless Chromium with no script error and every image loaded
 #     (the page's own check, <body data-status="ok N images">);
-#  4. with a Slurm cluster (the third argument "slurm"): the same spec dispatched as Slurm job
+#  4. GNU parallel dispatch runs every cell (its job log) and scores the peer as the local run did;
+#  5. with a Slurm cluster (the third argument "slurm"): the same spec dispatched as Slurm job
 #     arrays to a single-node cluster on this machine (scripts/slurm_local_cluster.sh) gives
 #     accuracy tables identical to the local run's.
 # Usage: sweep_cli_test.sh SUPERDYNA REPO [slurm]
@@ -100,8 +101,27 @@ echo "report: $status ($images <img> in the page)"
 [ "$status" = "data-status=\"ok $images images\"" ] || fail "the report is not complete: $status"
 [ "$images" -ge 5 ] || fail "expected two top views, two ATE plots and the timing bars"
 
+echo "-- 4. GNU parallel dispatch (the peer again, on the simulated sequences as recorded datasets)"
+cat >"$work/parallel.yaml" <<EOF
+name: parallel
+runs: 2
+sequences:
+  - {name: street, path: $work/local/sequences/street}
+  - {name: indoor, path: $work/local/sequences/indoor}
+configs:
+  - {name: peer, command: "$work/peer.sh {gt} {out}/peer.txt", trajectory: "{out}/peer.txt",
+     trajectory_format: tum, time_unit: ns}
+EOF
+"$superdyna" sweep "$work/parallel.yaml" --out "$work/parallel" --dispatch parallel -j 2 \
+  >"$work/parallel.log" 2>&1 || { cat "$work/parallel.log"; fail "the parallel sweep failed"; }
+[ "$(tail -n +2 "$work/parallel/dispatch/cells.joblog" | wc -l)" -eq 4 ] ||
+  fail "GNU parallel did not run the 4 cells"
+peer_local=$(grep '^| street ' "$work/local/tables/ate.md" | awk -F'|' '{print $5}')
+peer_parallel=$(grep '^| street ' "$work/parallel/tables/ate.md" | awk -F'|' '{print $3}')
+[ "$peer_local" = "$peer_parallel" ] || fail "the peer scored $peer_parallel, locally $peer_local"
+
 if [ "$mode" = slurm ]; then
-  echo "-- 4. the same spec through a single-node Slurm cluster"
+  echo "-- 5. the same spec through a single-node Slurm cluster"
   "$repo/scripts/slurm_local_cluster.sh" install
   cluster=$work/cluster
   env_line=$("$repo/scripts/slurm_local_cluster.sh" start "$cluster")

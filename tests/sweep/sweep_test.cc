@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <string>
 
 #include "superdyna/sweep/charts.h"
@@ -138,6 +139,21 @@ TEST(SweepSpec, ErrorsNameTheFileTheLineAndTheField) {
       "configs: [{name: x}]\n",
       {"SWEEP_TEST_UNSET_VARIABLE is not set", "sequences[0].simulate[1]"});
   expectSpecError("configs: [{name: x}]\n", {"sequences", "missing field"});
+}
+
+TEST(SweepSpec, TheBenchSpecsLoadAndPlanTheirCells) {
+  SUPERDYNA_REQUIRE_SHARED(euroc, "data/euroc/V1_01_easy_micro");
+  const test::ScopedEnv shared("SUPERDYNA_SHARED_DIR", test::sharedDir().string());
+  std::map<std::string, std::size_t> cells;
+  for (const auto& entry : fs::directory_iterator(fs::path(SUPERDYNA_SOURCE_DIR) / "bench")) {
+    if (!entry.path().string().ends_with(".sweep.yaml")) continue;
+    const SweepSpec spec = loadSweepSpec(entry.path());
+    cells[spec.name] = planSweep(spec, "/tmp/unused", "superdyna").cells.size();
+  }
+  // The README's backbone table: 17 cells; the ablation: 2 sequences x 7 configs x 5 runs.
+  EXPECT_EQ(cells["backbone"], 17u);
+  EXPECT_EQ(cells["dynamic-ablation"], 70u);
+  EXPECT_EQ(cells["pipeline-speed"], 9u);
 }
 
 TEST(SweepSpec, ExpandsVariablesWithDefaults) {

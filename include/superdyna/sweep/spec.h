@@ -29,8 +29,9 @@
 //   tables:
 //     - {name: ate, metric: ate_median, rows: sequences}
 //
-// Strings may use ${VAR} and ${VAR:-default} (environment); relative paths are relative to the
-// spec file's folder. Errors name the file, line and field.
+// Strings may use ${VAR} and ${VAR:-default} (environment). Relative paths are the spec file's
+// folder's: in `path` and `config`, and in simulator and `run` arguments (both start there);
+// an external command starts in its cell's folder ({out}). Errors name the file, line and field.
 
 #include <cstdint>
 #include <filesystem>

@@ -38,6 +38,9 @@ struct CellTask {
 
 struct SweepPlan {
   std::filesystem::path out;
+  /// Where the simulator and `superdyna run` start (relative paths in their arguments are the
+  /// spec's); external commands start in their cell's folder.
+  std::filesystem::path spec_dir;
   std::filesystem::path superdyna;  ///< The binary every task runs.
   std::vector<SequenceTask> sequences;
   std::vector<CellTask> cells;
@@ -57,7 +60,7 @@ bool cellNeeded(const SweepSpec& spec, const SweepPlan& plan, const CellTask& ce
 
 /// Simulates the sequence (clearing a half-written folder first). Throws InputError with the
 /// log's tail when the simulator fails.
-void prepareSequence(const SequenceTask& task, const std::string& revision);
+void prepareSequence(const SweepPlan& plan, const SequenceTask& task, const std::string& revision);
 
 /// Runs and scores one cell; returns its result (also written as result.json, with cell.json,
 /// command.txt, log.txt, the trajectory, stats.json, eval.json and pose_errors.csv). A failing
