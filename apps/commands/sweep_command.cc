@@ -102,7 +102,13 @@ class SweepCommand : public Command {
   }
 
   static std::string describe(const sweep::CellResult& r) {
-    if (!r.ok) return "failed: " + r.error.substr(0, r.error.find('\n'));
+    if (!r.ok) {
+      // The cause and the last line of the log, which usually says why.
+      std::string last = r.error.substr(0, r.error.find_last_not_of("\n ") + 1);
+      last = last.substr(last.find_last_of('\n') + 1);
+      const std::string first = r.error.substr(0, r.error.find('\n'));
+      return "failed: " + (last == first ? first : first + " " + last);
+    }
     return fmt::format("ATE {}, {:.1f} s, {:.1f} s CPU", sweep::formatMetres(r.ate_rmse_m),
                        r.wall_s, r.cpu_s);
   }

@@ -57,6 +57,9 @@ nlohmann::json toJson(const CellResult& r) {
           {"map_resets", numberOrNull(r.map_resets)},
           {"fps", numberOrNull(r.fps)},
           {"stage_ms", stages},
+          {"moving_precision", numberOrNull(r.moving_precision)},
+          {"moving_recall", numberOrNull(r.moving_recall)},
+          {"static_kept", numberOrNull(r.static_kept)},
           {"wall_s", numberOrNull(r.wall_s)},
           {"cpu_s", numberOrNull(r.cpu_s)},
           {"peak_rss_mb", numberOrNull(r.peak_rss_mb)}};
@@ -89,6 +92,9 @@ CellResult cellResultFromJson(const nlohmann::json& json, const std::filesystem:
       r.stage_ms[stage] = ms.is_number() ? ms.get<double>() : kNotMeasured;
     }
   }
+  r.moving_precision = numberOrNaN(json, "moving_precision", file);
+  r.moving_recall = numberOrNaN(json, "moving_recall", file);
+  r.static_kept = numberOrNaN(json, "static_kept", file);
   r.wall_s = numberOrNaN(json, "wall_s", file);
   r.cpu_s = numberOrNaN(json, "cpu_s", file);
   r.peak_rss_mb = numberOrNaN(json, "peak_rss_mb", file);

@@ -189,7 +189,7 @@ th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
 th { background: #f2f2f2; }
 td:first-child, th:first-child { text-align: left; }
 .row { display: flex; flex-wrap: wrap; gap: 1em; }
-figure { margin: 0; } figure img { max-width: 640px; border: 1px solid #ddd; }
+figure { margin: 0; } figure img { width: 600px; max-width: 46vw; border: 1px solid #ddd; }
 figcaption { font-size: 0.85em; color: #555; }
 .files { font-size: 0.8em; color: #777; }
 </style>

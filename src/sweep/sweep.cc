@@ -14,6 +14,7 @@
 
 #include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
+#include "superdyna/eval/dynamic_decisions.h"
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/eval/report_json.h"
 #include "superdyna/io/trajectory_io.h"
@@ -28,6 +29,20 @@ namespace {
 
 constexpr const char* kResultFile = "result.json";
 const fs::path kEurocGroundTruth = "mav0/state_groundtruth_estimate0/data.csv";
+const fs::path kInstanceStates = "mav0/instance_states.csv";
+constexpr int kDecisionMinPairs = 8;  // superdyna eval-dynamic's default
+
+/// Whether the cell's keypoints carry instance labels, so that it decides about moving objects.
+bool labelsKeypoints(const SequenceSpec& s, const ConfigSpec& c) {
+  for (const auto* args : {&s.run_args, &c.args}) {
+    for (const std::string& a : *args) {
+      if (a == "--instance-masks" || a == "--segmenter" || a.rfind("--segmenter=", 0) == 0) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
 
 void writeText(const fs::path& file, const std::string& text) {
   AtomicFile out(file);
@@ -171,6 +186,18 @@ void scoreCell(const SweepSpec& spec, const SweepPlan& plan, const CellTask& cel
   result.rpe_rot_unit = e.rpe_options.unit == eval::DeltaUnit::kMeters ? "deg/m" : "deg";
 }
 
+/// The moving-object decisions of the run against the simulator's truth, when both exist.
+void scoreDecisions(const CellTask& cell, const SequenceTask& task, CellResult& result) {
+  const fs::path log = cell.dir / "decisions.csv";
+  const fs::path truth = task.dataset / kInstanceStates;
+  if (!fs::exists(log) || !fs::exists(truth)) return;
+  const eval::DecisionScore score = eval::scoreDecisions(
+      eval::readDynamicLog(log), eval::readInstanceStates(truth), kDecisionMinPairs);
+  result.moving_precision = score.all.precision();
+  result.moving_recall = score.all.recall();
+  result.static_kept = score.all.staticKeptShare();
+}
+
 /// The numbers `superdyna run --stats` wrote, when it did.
 void readRunStats(const fs::path& file, CellResult& result) {
   if (!fs::exists(file)) return;
@@ -284,6 +311,9 @@ std::vector<std::string> cellCommand(const SweepSpec& spec, const SweepPlan& pla
   const fs::path config = cellConfigPath(c, cell);
   if (!config.empty()) command.insert(command.end(), {"--config", config.string()});
   if (c.deterministic) command.push_back("--deterministic");
+  if (labelsKeypoints(s, c)) {
+    command.insert(command.end(), {"--dynamic-log", (cell.dir / "decisions.csv").string()});
+  }
   for (const std::string& a : s.run_args)
     command.push_back(fillTemplate(a, values));
   for (const std::string& a : c.args)
@@ -366,6 +396,7 @@ CellResult runCell(const SweepSpec& spec, const SweepPlan& plan, const CellTask&
       throw InputError(p.describe() + "; the log ends:\n" + tailOfFile(cell.dir / "log.txt", 8));
     readRunStats(cell.dir / "stats.json", result);
     scoreCell(spec, plan, cell, result);
+    scoreDecisions(cell, task, result);
     result.ok = true;
   } catch (const std::exception& e) {
     result.ok = false;

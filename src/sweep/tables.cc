@@ -109,6 +109,20 @@ std::vector<Metric> makeMetrics() {
   m.push_back(medianMetric(
       "cpu_ms_per_frame", "CPU ms per frame, median",
       [](const CellResult& r) { return r.cpuMsPerFrame(); }, 1));
+  const auto percent = [](std::string name, std::string label, Getter get) {
+    auto value = [get](const CellGroup& g) { return median(g, get); };
+    auto text = [value](const CellGroup& g) {
+      const double v = value(g);
+      return withFailures(g, std::isfinite(v) ? fmt::format("{:.1f} %", 100.0 * v) : "-");
+    };
+    return Metric{std::move(name), std::move(label), value, text};
+  };
+  m.push_back(percent("moving_precision", "precision of 'moving', median",
+                      [](const CellResult& r) { return r.moving_precision; }));
+  m.push_back(percent("moving_recall", "recall of 'moving', median",
+                      [](const CellResult& r) { return r.moving_recall; }));
+  m.push_back(percent("static_kept", "features kept on standing objects, median",
+                      [](const CellResult& r) { return r.static_kept; }));
   const Getter rss = [](const CellResult& r) { return r.peak_rss_mb; };
   m.push_back({"peak_rss_mb", "peak memory [MB], largest run",
                [rss](const CellGroup& g) { return maximum(g, rss); },
@@ -273,6 +287,31 @@ TableText speedTable(const std::vector<CellGroup>& groups) {
                     "peak resident memory");
 }
 
+std::optional<TableText> decisionsTable(const std::vector<CellGroup>& groups) {
+  TableBuilder table(
+      {"sequence", "config", "runs ok", "precision of 'moving'", "recall", "static features kept"});
+  bool any = false;
+  for (const CellGroup& g : groups) {
+    if (!std::isfinite(metric("moving_precision").value(g)) &&
+        !std::isfinite(metric("static_kept").value(g))) {
+      continue;
+    }
+    std::vector<std::string> texts = {g.sequence, g.config,
+                                      fmt::format("{} / {}", g.ok().size(), g.runs.size())};
+    std::vector<std::string> csv = texts;
+    for (const char* name : {"moving_precision", "moving_recall", "static_kept"}) {
+      texts.push_back(metric(name).text(g));
+      csv.push_back(csvNumber(metric(name).value(g)));
+    }
+    table.row(texts, csv);
+    any = true;
+  }
+  if (!any) return std::nullopt;
+  return table.done("decisions",
+                    "Moving-object decisions per object-frame (objects with at least "
+                    "8 matched features; median of runs)");
+}
+
 TableText timingTable(const SweepSpec& spec, const std::vector<CellGroup>& groups) {
   std::vector<std::string> stages;
   for (const CellGroup& g : groups) {
@@ -346,6 +385,7 @@ std::vector<TableText> allTables(const SweepSpec& spec, const std::vector<CellGr
   std::vector<TableText> tables;
   tables.push_back(matrixTable(spec, {"ate", "ATE", "ate_median", false, {}, {}}, groups));
   tables.push_back(accuracyTable(groups));
+  if (auto decisions = decisionsTable(groups)) tables.push_back(std::move(*decisions));
   for (const TableSpec& t : spec.tables)
     tables.push_back(matrixTable(spec, t, groups));
   tables.push_back(speedTable(groups));

@@ -5,7 +5,8 @@
 #  1. killed with SIGKILL once two cells have finished, then started again: the children died
 #     with it, the finished cells are not run again (their result.json is unchanged) and the
 #     sweep ends with every cell ok;
-#  2. the peer is scored in the same ATE table as our configs;
+#  2. the peer is scored in the same ATE table as our configs; the stereo-inertial config's
+#     moving-object decisions are scored against the simulator's truth;
 #  3. the HTML report opens in headless Chromium with no script error and every image loaded
 #     (the page's own check, <body data-status="ok N images">);
 #  4. GNU parallel dispatch runs every cell (its job log) and scores the peer as the local run did;
@@ -40,11 +41,13 @@ cat >"$work/spec.yaml" <<EOF
 name: e2e
 runs: 1
 sequences:
-  - {name: street, simulate: [--scene, street, --dynamic, none, --duration, "4", --seed, "21"]}
+  - {name: street, simulate: [--scene, street, --dynamic, mid, --duration, "4", --seed, "21"]}
   - {name: indoor, simulate: [--scene, indoor, --dynamic, none, --duration, "4", --seed, "5"]}
 configs:
   - {name: orb-stereo, mode: stereo, config: $repo/configs/euroc_stereo.yaml}
-  - {name: orb-si, mode: stereo-inertial, config: $repo/configs/euroc_stereo_inertial.yaml}
+  - {name: orb-si, mode: stereo-inertial, config: $repo/configs/euroc_stereo_inertial.yaml,
+     args: [--instance-masks, --dynamic, semantic-geometric, --overlay, "{out}/overlay",
+            --overlay-every, "20"]}
   - {name: peer, command: "$work/peer.sh {gt} {out}/peer.txt", trajectory: "{out}/peer.txt",
      trajectory_format: tum, time_unit: ns}
 tables:
@@ -89,6 +92,9 @@ grep -E '^\| street \| [0-9.]+ cm \| [0-9.]+ cm \| [0-9.]+ cm \|$' "$work/local/
 grep -E '^\| peer \| [0-9.]+ cm \| [0-9.]+ cm \|$' "$work/local/tables/ablation.md" ||
   { cat "$work/local/tables/ablation.md"; fail "the transposed table lacks the peer"; }
 for t in accuracy speed timing; do [ -s "$work/local/tables/$t.csv" ] || fail "no $t.csv"; done
+grep -E '^\| street \| orb-si \| 1 / 1 \| [0-9.]+ % \| [0-9.]+ % \| [0-9.]+ % \|$' \
+  "$work/local/tables/decisions.md" ||
+  { cat "$work/local/tables/decisions.md"; fail "no scored moving-object decisions"; }
 
 echo "-- 3. the report in headless Chromium"
 page=$work/local/report/index.html
@@ -99,7 +105,8 @@ status=$(grep -o 'data-status="[^"]*"' "$work/dom.html" || true)
 images=$(grep -c '<img ' "$page")
 echo "report: $status ($images <img> in the page)"
 [ "$status" = "data-status=\"ok $images images\"" ] || fail "the report is not complete: $status"
-[ "$images" -ge 5 ] || fail "expected two top views, two ATE plots and the timing bars"
+[ "$images" -ge 7 ] ||
+  fail "expected two top views, two ATE plots, the timing bars and overlay images"
 
 echo "-- 4. GNU parallel dispatch (the peer again, on the simulated sequences as recorded datasets)"
 cat >"$work/parallel.yaml" <<EOF

@@ -33,6 +33,11 @@ struct CellResult {
   double map_resets = kNotMeasured;
   double fps = kNotMeasured;
   std::map<std::string, double> stage_ms;  ///< Mean ms per frame by pipeline stage.
+  // Moving-object decisions (cells with labelled keypoints on a simulated sequence: the run's
+  // --dynamic-log scored against mav0/instance_states.csv, objects with >= 8 matched features).
+  double moving_precision = kNotMeasured;
+  double moving_recall = kNotMeasured;
+  double static_kept = kNotMeasured;  ///< Share of the features on standing objects kept.
   // The process, measured by the sweep (wait4): every system alike.
   double wall_s = kNotMeasured;
   double cpu_s = kNotMeasured;  ///< User + system time of the process and its children.

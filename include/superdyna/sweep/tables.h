@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,7 +34,7 @@ struct Metric {
 };
 
 /// ate_median, ate_mean_ci, ate_runs, rpe_trans_median, rpe_rot_median, lost_frames,
-/// map_resets, fps, cpu_ms_per_frame, peak_rss_mb.
+/// map_resets, fps, cpu_ms_per_frame, moving_precision, moving_recall, static_kept, peak_rss_mb.
 const std::vector<Metric>& metrics();
 const Metric& metric(const std::string& name);
 
@@ -51,6 +52,9 @@ struct TableText {
 /// Long form, one row per (sequence, config): runs, ATE median / mean ± CI / min / max, RPE,
 /// lost frames, map resets.
 TableText accuracyTable(const std::vector<CellGroup>& groups);
+/// Precision and recall of "moving" and the features kept on standing objects, for the cells
+/// that scored their moving-object decisions (the others are left out); none without such cells.
+std::optional<TableText> decisionsTable(const std::vector<CellGroup>& groups);
 /// FPS, CPU ms per frame and peak memory per (sequence, config).
 TableText speedTable(const std::vector<CellGroup>& groups);
 /// Mean ms per frame of each pipeline stage per config, over all its sequences and runs.
@@ -59,7 +63,8 @@ TableText timingTable(const SweepSpec& spec, const std::vector<CellGroup>& group
 TableText matrixTable(const SweepSpec& spec, const TableSpec& table,
                       const std::vector<CellGroup>& groups);
 
-/// Every table: the accuracy, speed and timing tables, the ATE matrix and the spec's tables.
+/// Every table: the ATE matrix, accuracy, decisions (when any cell scored them), the spec's
+/// tables, speed and timing.
 std::vector<TableText> allTables(const SweepSpec& spec, const std::vector<CellGroup>& groups);
 /// Writes DIR/<name>.md and DIR/<name>.csv for each table and DIR/tables.md with all of them.
 void writeTables(const std::vector<TableText>& tables, const std::filesystem::path& dir);
