@@ -89,17 +89,6 @@ ImageFormat formatFromExtension(const std::filesystem::path& file) {
                                         file.string(), file.extension().string()));
 }
 
-/// 1, 2 or 5 times a power of ten, so that about kTargetTicks ticks span `range_m`.
-double niceTickStep(double range_m) {
-  const double raw = range_m / kTargetTicks;
-  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
-  const double normalised = raw / magnitude;
-  if (normalised < 1.5) return magnitude;
-  if (normalised < 3.5) return 2.0 * magnitude;
-  if (normalised < 7.5) return 5.0 * magnitude;
-  return 10.0 * magnitude;
-}
-
 Layout computeLayout(const std::vector<const PlotSeries*>& series, const PlotOptions& options) {
   double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x;
   double min_y = min_x, max_y = max_x;
@@ -127,7 +116,8 @@ Layout computeLayout(const std::vector<const PlotSeries*>& series, const PlotOpt
   layout.px_per_m = std::min(layout.area_width / span_x, layout.area_height / span_y);
   layout.x0 = 0.5 * (min_x + max_x) - 0.5 * layout.area_width / layout.px_per_m;
   layout.y0 = 0.5 * (min_y + max_y) - 0.5 * layout.area_height / layout.px_per_m;
-  layout.tick_step_m = niceTickStep(std::max(layout.x1() - layout.x0, layout.y1() - layout.y0));
+  layout.tick_step_m =
+      niceTickStep(std::max(layout.x1() - layout.x0, layout.y1() - layout.y0), kTargetTicks);
   return layout;
 }
 
@@ -190,32 +180,6 @@ std::vector<DrawnSeries> drawnSeries(const PlotSeries& ground_truth,
 }
 
 // ---- SVG ----
-
-std::string escapeXml(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&apos;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
 
 std::string svgText(double x, double y, const std::string& text, const char* anchor, int size = 12,
                     const std::string& extra = {}) {
@@ -405,6 +369,43 @@ PlotSeries alignedEstimateSeries(const EvaluationResult& result, const std::stri
   for (const PoseError& pose : result.poses)
     series.positions.push_back(pose.aligned_position);
   return series;
+}
+
+double niceTickStep(double range, int ticks) {
+  if (!(range > 0.0) || ticks < 1) return 1.0;
+  const double raw = range / ticks;
+  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+  const double normalised = raw / magnitude;
+  if (normalised < 1.5) return magnitude;
+  if (normalised < 3.5) return 2.0 * magnitude;
+  if (normalised < 7.5) return 5.0 * magnitude;
+  return 10.0 * magnitude;
+}
+
+std::string escapeXml(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
 }
 
 PlotPlane parsePlotPlane(const std::string& name) {

@@ -8,6 +8,7 @@
 
 #include "superdyna/core/atomic_file.h"
 #include "superdyna/core/error.h"
+#include "superdyna/eval/plot.h"
 
 namespace superdyna::sweep {
 
@@ -23,7 +24,7 @@ std::string text(double x, double y, const std::string& s, const char* anchor, i
                  const std::string& extra = "") {
   return fmt::format(
       "<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"{}\" font-size=\"{}\"{}>{}</text>\n", x, y,
-      anchor, size, extra, escapeXml(s));
+      anchor, size, extra, eval::escapeXml(s));
 }
 
 std::string tickText(double value, double step) {
@@ -55,40 +56,6 @@ std::string legend(const std::vector<std::string>& labels, double top) {
 
 }  // namespace
 
-std::string escapeXml(const std::string& s) {
-  std::string out;
-  for (char ch : s) {
-    switch (ch) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&#39;";
-        break;
-      default:
-        out += ch;
-    }
-  }
-  return out;
-}
-
-double niceStep(double range, int ticks) {
-  if (!(range > 0.0)) return 1.0;
-  const double raw = range / ticks;
-  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
-  const double n = raw / magnitude;
-  return (n < 1.5 ? 1.0 : n < 3.5 ? 2.0 : n < 7.5 ? 5.0 : 10.0) * magnitude;
-}
-
 void writeLineChart(const std::filesystem::path& file, const std::string& title,
                     const std::string& x_label, const std::string& y_label,
                     const std::vector<LineSeries>& series) {
@@ -104,7 +71,7 @@ void writeLineChart(const std::filesystem::path& file, const std::string& title,
   if (x_max <= x_min) x_max = x_min + 1.0;
   if (y_max <= 0.0) y_max = 1.0;
   const double height = 420, area_w = kWidth - kLeft - kRight, area_h = height - kTop - kBottom;
-  const double y_step = niceStep(y_max, 5);
+  const double y_step = eval::niceTickStep(y_max, 5);
   y_max = std::ceil(y_max / y_step) * y_step;
   const auto px = [&](double x) { return kLeft + (x - x_min) / (x_max - x_min) * area_w; };
   const auto py = [&](double y) { return kTop + area_h - y / y_max * area_h; };
@@ -116,7 +83,7 @@ void writeLineChart(const std::filesystem::path& file, const std::string& title,
         kLeft, py(y), kLeft + area_w, py(y));
     body += text(kLeft - 8, py(y) + 4, tickText(y, y_step), "end");
   }
-  const double x_step = niceStep(x_max - x_min, 8);
+  const double x_step = eval::niceTickStep(x_max - x_min, 8);
   for (double x = std::ceil(x_min / x_step) * x_step; x <= x_max; x += x_step) {
     body += text(px(x), kTop + area_h + 18, tickText(x, x_step), "middle");
   }
@@ -157,7 +124,7 @@ void writeStackedBars(const std::filesystem::path& file, const std::string& titl
   const double area_w = kWidth - left - kRight;
   const double area_h = static_cast<double>(bars.size()) * (bar_h + gap) + gap;
   const double height = kTop + area_h + kBottom;
-  const double step = niceStep(total_max, 6);
+  const double step = eval::niceTickStep(total_max, 6);
   const double x_max = std::ceil(total_max / step) * step;
   const auto px = [&](double v) { return left + v / x_max * area_w; };
   std::string body = text(kWidth / 2, 25, title, "middle", 16);
@@ -178,7 +145,7 @@ void writeStackedBars(const std::filesystem::path& file, const std::string& titl
           "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
           "fill=\"{}\"><title>{}: {:.2f}</title></rect>\n",
           px(at), y, px(at + v) - px(at), bar_h, kPalette[k % kPalette.size()],
-          escapeXml(segment_names[k]), v);
+          eval::escapeXml(segment_names[k]), v);
       at += v;
     }
   }

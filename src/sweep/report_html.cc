@@ -59,7 +59,7 @@ fs::path cellDir(const SweepPlan& plan, const CellResult& r) {
 
 std::string figure(const std::string& image, const std::string& caption) {
   return fmt::format("<figure><img src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>\n",
-                     escapeXml(image), escapeXml(caption), escapeXml(caption));
+                     eval::escapeXml(image), eval::escapeXml(caption), eval::escapeXml(caption));
 }
 
 /// Top view and ATE over time of one sequence; empty when no config has a successful run.
@@ -158,8 +158,9 @@ std::string tableSection(const std::vector<TableText>& tables) {
   std::string html = "<h2 id=\"tables\">Tables</h2>\n";
   for (const TableText& t : tables) {
     html += fmt::format("<h3 id=\"table-{}\">{}</h3>\n{}<p class=\"files\">{}.md, {}.csv</p>\n",
-                        escapeXml(t.name), escapeXml(t.title), markdownTableToHtml(t.markdown),
-                        escapeXml(t.name), escapeXml(t.name));
+                        eval::escapeXml(t.name), eval::escapeXml(t.title),
+                        markdownTableToHtml(t.markdown), eval::escapeXml(t.name),
+                        eval::escapeXml(t.name));
   }
   return html;
 }
@@ -177,9 +178,9 @@ std::string header(const ReportContext& c) {
       "<code>cells/&lt;sequence&gt;/&lt;config&gt;/run-&lt;k&gt;/cell.json</code>.</p>\n"
       "<p><a href=\"#tables\">Tables</a> · <a href=\"#trajectories\">Trajectories</a> · "
       "<a href=\"#timing\">Timing</a></p>\n",
-      escapeXml(c.spec.name), c.spec.sequences.size(), c.spec.configs.size(), c.spec.runs,
-      ok + failed, failed, c.plan.cells.size(), escapeXml(c.spec.file.string()),
-      escapeXml(c.revision));
+      eval::escapeXml(c.spec.name), c.spec.sequences.size(), c.spec.configs.size(), c.spec.runs,
+      ok + failed, failed, c.plan.cells.size(), eval::escapeXml(c.spec.file.string()),
+      eval::escapeXml(c.revision));
 }
 
 constexpr const char* kStyle = R"(<style>
@@ -226,7 +227,7 @@ std::string markdownTableToHtml(const std::string& markdown) {
          bar = line.find(" |", start)) {
       std::string field = line.substr(start, bar - start);
       if (!field.empty() && field.front() == ' ') field.erase(0, 1);
-      html += fmt::format("<{0}>{1}</{0}>", cell, escapeXml(field));
+      html += fmt::format("<{0}>{1}</{0}>", cell, eval::escapeXml(field));
       start = bar + 2;
     }
     html += "</tr>\n";
@@ -239,13 +240,13 @@ fs::path writeHtmlReport(const ReportContext& c, const fs::path& dir) {
   std::string body =
       header(c) + tableSection(c.tables) + "<h2 id=\"trajectories\">Trajectories</h2>\n";
   for (const SequenceSpec& s : c.spec.sequences) {
-    body += fmt::format("<h3>{}</h3>\n", escapeXml(s.name)) + sequencePlots(c, s.name, dir);
+    body += fmt::format("<h3>{}</h3>\n", eval::escapeXml(s.name)) + sequencePlots(c, s.name, dir);
   }
   body += "<h2 id=\"timing\">Timing</h2>\n" + timingPlot(c, dir) + overlayImages(c, dir);
   const fs::path page = dir / "index.html";
   AtomicFile out(page);
   out.stream() << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
-               << fmt::format("<title>Sweep {}</title>\n", escapeXml(c.spec.name)) << kStyle
+               << fmt::format("<title>Sweep {}</title>\n", eval::escapeXml(c.spec.name)) << kStyle
                << "</head>\n<body>\n"
                << body << kStatusScript << "</body>\n</html>\n";
   out.commit();

@@ -62,6 +62,18 @@ tables:
                      dataset.string());
 }
 
+/// The peer spec on a circle dataset in `dir`, planned into dir/out.
+struct PeerSweep {
+  explicit PeerSweep(const fs::path& dir)
+      : spec(writeAndLoad(dir)), plan(planSweep(spec, dir / "out", "/bin/false")) {}
+  static SweepSpec writeAndLoad(const fs::path& dir) {
+    test::writeFile(dir / "spec.yaml", peerSpec(writeCircleDataset(dir / "dataset")));
+    return loadSweepSpec(dir / "spec.yaml");
+  }
+  SweepSpec spec;
+  SweepPlan plan;
+};
+
 TEST(SweepSpec, ReadsSequencesConfigsTablesAndExpandsTheEnvironment) {
   test::ScratchDir dir("sweep_spec");
   test::writeFile(dir / "base.yaml", "tracker: {}\n");
@@ -264,10 +276,9 @@ TEST(SweepProcess, ReportsExitStatusSignalCpuTimeAndLog) {
 
 TEST(SweepCells, ExternalSystemsAreScoredResumedAndRerunWhenTheirDefinitionChanges) {
   test::ScratchDir dir("sweep_cells");
-  const fs::path dataset = writeCircleDataset(dir / "dataset");
-  test::writeFile(dir / "spec.yaml", peerSpec(dataset));
-  const SweepSpec spec = loadSweepSpec(dir / "spec.yaml");
-  const SweepPlan plan = planSweep(spec, dir / "out", "/bin/false");
+  const PeerSweep peers(dir.path());
+  const SweepSpec& spec = peers.spec;
+  const SweepPlan& plan = peers.plan;
   ASSERT_EQ(plan.cells.size(), 4u);
   for (const CellTask& cell : plan.cells) {
     EXPECT_TRUE(cellNeeded(spec, plan, cell, false));
@@ -313,10 +324,9 @@ TEST(SweepCells, ExternalSystemsAreScoredResumedAndRerunWhenTheirDefinitionChang
 
 TEST(SweepReport, PageHasEveryTablePlotAndTheStatusScript) {
   test::ScratchDir dir("sweep_report");
-  const fs::path dataset = writeCircleDataset(dir / "dataset");
-  test::writeFile(dir / "spec.yaml", peerSpec(dataset));
-  const SweepSpec spec = loadSweepSpec(dir / "spec.yaml");
-  const SweepPlan plan = planSweep(spec, dir / "out", "/bin/false");
+  const PeerSweep peers(dir.path());
+  const SweepSpec& spec = peers.spec;
+  const SweepPlan& plan = peers.plan;
   for (const CellTask& cell : plan.cells)
     runCell(spec, plan, cell, "test");
   const auto groups = groupResults(spec, collectResults(spec, plan));

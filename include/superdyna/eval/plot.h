@@ -45,6 +45,12 @@ struct PlotOptions {
   void validate() const;
 };
 
+/// 1, 2 or 5 times a power of ten, so that about `ticks` steps span `range` (1 for an empty
+/// range): tick steps people read at a glance.
+double niceTickStep(double range, int ticks);
+/// Text escaped for XML and HTML (& < > " ').
+std::string escapeXml(const std::string& text);
+
 /// Draws the ground truth (dark grey) and every estimate (distinct colours) with a legend and
 /// metre ticks. The extension of `file` selects the format: ".svg" or ".png" (case-insensitive);
 /// anything else throws OptionError. Throws InputError if there is nothing to draw or the file

@@ -31,10 +31,4 @@ void writeStackedBars(const std::filesystem::path& file, const std::string& titl
                       const std::string& value_label, const std::vector<std::string>& segment_names,
                       const std::vector<StackedBar>& bars);
 
-/// 1, 2 or 5 times a power of ten, so that about `ticks` steps span `range`.
-double niceStep(double range, int ticks);
-
-/// Text escaped for XML and HTML (& < > " ').
-std::string escapeXml(const std::string& text);
-
 }  // namespace superdyna::sweep
