@@ -93,10 +93,15 @@ EvaluationResult evaluate(const Trajectory& gt, const Trajectory& est,
 
   // RPE is invariant to a rigid alignment, but a scale estimated by Sim(3) must be applied.
   const double rpe_scale = options.align == AlignmentMode::kSim3 ? result.alignment.s : 1.0;
-  const RpeResult rpe = computeRpe(matched.gt, matched.est, rpe_scale, options.rpe);
-  result.rpe_trans = rpe.trans;
-  result.rpe_rot = rpe.rot;
   result.rpe_options = options.rpe;
+  try {
+    const RpeResult rpe = computeRpe(matched.gt, matched.est, rpe_scale, options.rpe);
+    result.rpe_trans = rpe.trans;
+    result.rpe_rot = rpe.rot;
+  } catch (const InputError& e) {
+    if (options.require_rpe) throw;
+    result.rpe_missing = e.what();  // a path shorter than the delta: ATE still holds
+  }
 
   result.poses = perPoseErrors(matched, result.alignment, ate);
   return result;

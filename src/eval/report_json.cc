@@ -31,7 +31,7 @@ nlohmann::json alignmentJson(const EvaluationResult& result) {
 
 nlohmann::json toJson(const EvaluationResult& result) {
   const DeltaUnit unit = result.rpe_options.unit;
-  return {
+  nlohmann::json json = {
       {"ate_rmse", result.ate_trans.rmse},
       {"ate_mean", result.ate_trans.mean},
       {"ate_median", result.ate_trans.median},
@@ -59,6 +59,15 @@ nlohmann::json toJson(const EvaluationResult& result) {
       {"rpe_unit_trans", rpeTransUnit(unit)},
       {"rpe_unit_rot", rpeRotUnit(unit)},
   };
+  // RPE values of a path shorter than the delta are null, with the reason.
+  if (!result.rpe_missing.empty()) {
+    for (const char* key : {"rpe_trans", "rpe_trans_mean", "rpe_trans_median", "rpe_rot",
+                            "rpe_rot_mean", "rpe_rot_median"}) {
+      json[key] = nullptr;
+    }
+    json["rpe_missing"] = result.rpe_missing;
+  }
+  return json;
 }
 
 nlohmann::json toJson(const MultiRunResult& result) {

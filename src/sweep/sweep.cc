@@ -147,6 +147,7 @@ eval::EvaluationOptions evaluationOptions(const SweepSpec& spec, const ConfigSpe
   options.association.max_diff_ns = static_cast<TimeNs>(spec.eval.max_diff_s * 1e9);
   options.rpe.delta = spec.eval.rpe_delta;
   options.rpe.unit = eval::parseDeltaUnit(spec.eval.rpe_unit);
+  options.require_rpe = false;  // a path shorter than the delta still has an ATE
   return options;
 }
 
@@ -180,8 +181,8 @@ void scoreCell(const SweepSpec& spec, const SweepPlan& plan, const CellTask& cel
   writePoseErrors(cell.dir / "pose_errors.csv", e);
   result.ate_rmse_m = e.ate_trans.rmse;
   result.ate_rot_deg = e.ate_rot.rmse;
-  result.rpe_trans = e.rpe_trans.rmse;
-  result.rpe_rot = e.rpe_rot.rmse;
+  result.rpe_trans = e.rpe_missing.empty() ? e.rpe_trans.rmse : kNotMeasured;
+  result.rpe_rot = e.rpe_missing.empty() ? e.rpe_rot.rmse : kNotMeasured;
   result.rpe_trans_unit = eval::rpeTransUnit(e.rpe_options.unit);
   result.rpe_rot_unit = e.rpe_options.unit == eval::DeltaUnit::kMeters ? "deg/m" : "deg";
 }

@@ -35,6 +35,25 @@ TEST(EvaluateTest, IdenticalTrajectoryHasZeroError) {
   EXPECT_GT(result.rpe_trans.count, gt.size() / 2);
 }
 
+TEST(EvaluateTest, APathShorterThanTheRpeDeltaHasAnAteWhenRpeIsOptional) {
+  // 2 cm of jitter around a standing rig (as the EuRoC excerpt's stationary start): no pose pair
+  // is 1 m apart.
+  Trajectory gt, est;
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Vector3d p(0.01 * std::sin(0.3 * i), 0.01 * std::cos(0.2 * i), 0.001 * i);
+    gt.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(), p)});
+    est.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(),
+                                                    p + Eigen::Vector3d(0.001 * (i % 2), 0, 0))});
+  }
+  EvaluationOptions options;
+  test::expectError([&] { evaluate(gt, est, options); }, {"RPE", "1 m apart"});
+  options.require_rpe = false;
+  const EvaluationResult result = evaluate(gt, est, options);
+  EXPECT_NEAR(result.ate_trans.rmse, 0.0005, 1e-4);
+  EXPECT_EQ(result.rpe_trans.count, 0u);
+  EXPECT_NE(result.rpe_missing.find("1 m apart"), std::string::npos) << result.rpe_missing;
+}
+
 TEST(EvaluateTest, Sim3RecoversScaleAndRpeUsesIt) {
   SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
   const Trajectory gt = testdata::readSubsampled(file, 10);

@@ -137,7 +137,7 @@ if [ "$mode" = slurm ]; then
     { cat "$work/slurm.log"; fail "the Slurm sweep failed"; }
   grep -q "dispatch: sbatch --wait --array=0-5" "$work/slurm.log" || fail "not dispatched to Slurm"
   ls "$work/slurm/dispatch"/cells-*.log >/dev/null || fail "no Slurm task logs"
-  for t in ate accuracy ablation; do
+  for t in ate accuracy ablation decisions; do
     diff "$work/local/tables/$t.md" "$work/slurm/tables/$t.md" || fail "$t differs under Slurm"
   done
   echo "Slurm and local tables identical"

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "superdyna/core/trajectory.h"
@@ -24,6 +25,9 @@ struct EvaluationOptions {
   std::optional<Sim3d> given_alignment;
   AssociationOptions association;
   RpeOptions rpe;
+  /// Without a pose pair `rpe.delta` apart, throw (true), or report the ATE with the RPE left
+  /// out (EvaluationResult::rpe_missing; superdyna sweep on paths shorter than the delta).
+  bool require_rpe = true;
 
   /// Throws OptionError naming the offending option.
   void validate() const;
@@ -55,6 +59,7 @@ struct EvaluationResult {
   ErrorStatistics rpe_trans;  ///< [m/m] for a delta in metres, [m] for frames.
   ErrorStatistics rpe_rot;    ///< [deg/m] for a delta in metres, [deg] for frames.
   RpeOptions rpe_options;     ///< Delta and unit the RPE was computed with.
+  std::string rpe_missing;    ///< Why no RPE was computed (require_rpe false); empty if it was.
 
   std::vector<PoseError> poses;  ///< One entry per associated pair, in time order.
 };

@@ -15,7 +15,8 @@ namespace superdyna::eval {
 /// ate_rot_mean_deg; scale; pairs; gt_poses; est_poses;
 /// alignment {mode, R (3 rows of 3), t [m], s, first_n}; rpe_trans, rpe_trans_mean, rpe_rot,
 /// rpe_rot_mean (rpe_trans / rpe_rot are RMSEs); rpe_pairs, rpe_delta, rpe_delta_unit,
-/// rpe_unit_trans, rpe_unit_rot.
+/// rpe_unit_trans, rpe_unit_rot; without an RPE (EvaluationResult::rpe_missing) its values are
+/// null and rpe_missing says why.
 nlohmann::json toJson(const EvaluationResult& result);
 
 /// {runs: [toJson(run) + {name}], summary: {runs, ate_rmse_median, ate_rmse_mean, ate_rmse_std,
