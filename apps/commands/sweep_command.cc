@@ -63,6 +63,7 @@ class SweepCommand : public Command {
     dispatch_.superdyna = self;
     dispatch_.spec = fs::absolute(spec_);
     dispatch_.out = plan.out;
+    dispatch_.rerun_failed = rerun_failed_;
     if (task_) return runTask(spec, plan, *task_);
     if (!report_only_) {
       fs::create_directories(plan.out);

@@ -43,7 +43,11 @@ fs::path writeTaskList(const std::vector<std::string>& tasks, const fs::path& di
 }
 
 std::vector<std::string> workerCommand(const DispatchOptions& o) {
-  return {o.superdyna.string(), "sweep", o.spec.string(), "--out", o.out.string(), "--task"};
+  std::vector<std::string> command = {o.superdyna.string(), "sweep", o.spec.string(), "--out",
+                                      o.out.string()};
+  if (o.rerun_failed) command.push_back("--rerun-failed");
+  command.push_back("--task");
+  return command;
 }
 
 void runWithParallel(const DispatchOptions& o, const fs::path& task_list,

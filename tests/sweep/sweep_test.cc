@@ -9,6 +9,7 @@
 #include <string>
 
 #include "superdyna/sweep/charts.h"
+#include "superdyna/sweep/dispatch.h"
 #include "superdyna/sweep/process.h"
 #include "superdyna/sweep/report_html.h"
 #include "superdyna/sweep/spec.h"
@@ -320,6 +321,24 @@ TEST(SweepCells, ExternalSystemsAreScoredResumedAndRerunWhenTheirDefinitionChang
   EXPECT_FALSE(now[0].ok);
   EXPECT_EQ(now[1].config, "shifted");
   EXPECT_EQ(collectResults(spec, plan).size(), 3u);  // run 2 of "exact" and "shifted"
+}
+
+TEST(SweepDispatch, TheSlurmScriptRunsTheTaskOfItsArrayIndex) {
+  DispatchOptions options;
+  options.kind = parseDispatchKind("slurm");
+  options.superdyna = "/opt/superdyna";
+  options.spec = "/data/my spec.yaml";
+  options.out = "/scratch/sweep";
+  options.rerun_failed = true;
+  const std::string script = slurmScript(options, "/scratch/sweep/dispatch/cells.tasks", "cells");
+  for (const std::string& part : std::vector<std::string>{
+           "#!/bin/bash", "#SBATCH --output=/scratch/sweep/dispatch/cells-%a.log",
+           "sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" /scratch/sweep/dispatch/cells.tasks",
+           "exec /opt/superdyna sweep '/data/my spec.yaml' --out /scratch/sweep --rerun-failed "
+           "--task \"$task\""}) {
+    EXPECT_NE(script.find(part), std::string::npos) << part << "\n" << script;
+  }
+  test::expectError<OptionError>([] { parseDispatchKind("mpi"); }, {"--dispatch", "mpi"});
 }
 
 TEST(SweepReport, PageHasEveryTablePlotAndTheStatusScript) {

@@ -24,6 +24,7 @@ struct DispatchOptions {
   std::filesystem::path superdyna;       ///< The binary the workers run.
   std::filesystem::path spec;
   std::filesystem::path out;
+  bool rerun_failed = false;  ///< Passed on to the workers (--rerun-failed).
 };
 
 /// Runs every task of `tasks` ("cell:3") and returns when all have ended. `run_here` runs one
