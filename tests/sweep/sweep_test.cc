@@ -166,7 +166,7 @@ TEST(SweepSpec, TheBenchSpecsLoadAndPlanTheirCells) {
   // The README's backbone table: 17 cells; the ablation: 2 sequences x 7 configs x 5 runs.
   EXPECT_EQ(cells["backbone"], 17u);
   EXPECT_EQ(cells["dynamic-ablation"], 70u);
-  EXPECT_EQ(cells["pipeline-speed"], 9u);
+  EXPECT_EQ(cells["pipeline-speed"], 4u);
 }
 
 TEST(SweepSpec, ExpandsVariablesWithDefaults) {
