@@ -4,7 +4,6 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
-#include <chrono>
 #include <cstdint>
 #include <ctime>
 #include <fstream>
