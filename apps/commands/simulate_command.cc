@@ -140,6 +140,18 @@ class SimulateCommand : public Command {
                      "Folder of photos (.png/.jpg) to texture the world with instead of procedural "
                      "textures")
         ->check(CLI::ExistingDirectory);
+    sub_->add_option("--background-contrast", options_.world.background_contrast,
+                     "Contrast of the static world's textures (ground, walls, clutter; not the "
+                     "parked or moving agents), 1 = as usual: below 1 a weakly textured "
+                     "background, on which parked cars and standing people hold more of the "
+                     "features")
+        ->check(CLI::Range(0.01, 1.0))
+        ->capture_default_str();
+    sub_->add_option("--parked-density", options_.world.parked_density,
+                     "Parked cars and standing people per metre of path, relative to the scene's "
+                     "usual number (a full parking lot: 4); other values also draw other movers")
+        ->check(CLI::Range(0.1, 10.0))
+        ->capture_default_str();
     sub_->add_option("--rosbag", rosbag_,
                      "Also write the sequence as a ROS 1 bag (lz4) in the layout of "
                      "--rosbag-layout; the calibration stays in the folder");
@@ -417,7 +429,14 @@ class SimulateCommand : public Command {
     if (texture_dir_) {
       throw OptionError("--textures", "the reused world of --world-of brings its own textures");
     }
+    if (sub_->count("--background-contrast") > 0 &&
+        options_.world.background_contrast != source.background_contrast) {
+      throw OptionError("--background-contrast",
+                        fmt::format("the world of {} has background contrast {}", sequence.string(),
+                                    source.background_contrast));
+    }
     options_.world.scene = source.scene;
+    options_.world.background_contrast = source.background_contrast;
     options_.texture_dir = source.texture_dir;
     if (fs::weakly_canonical(fs::absolute(sequence)) ==
         fs::weakly_canonical(fs::absolute(options_.output_dir))) {

@@ -1026,6 +1026,17 @@ Texture Texture::fromPhotos(const std::vector<cv::Mat>& photos, int width, int h
   return Texture(std::move(canvas), texel_m);
 }
 
+Texture Texture::withContrast(double factor) const {
+  if (!(factor > 0.0 && factor <= 4.0)) {
+    throw OptionError("contrast", fmt::format("must be in (0, 4], got {}", factor));
+  }
+  if (factor == 1.0) return *this;
+  const double mean = cv::mean(levels_.front())[0];
+  cv::Mat scaled;
+  levels_.front().convertTo(scaled, CV_8UC1, factor, (1.0 - factor) * mean);
+  return Texture(std::move(scaled), texel_m_);
+}
+
 float Texture::bilinear(std::size_t level, double u_m, double v_m) const {
   const cv::Mat& image = levels_[level];
   const double x = u_m * level_texels_per_m_[level].x() - 0.5;

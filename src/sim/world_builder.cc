@@ -257,6 +257,10 @@ class WorldBuilder {
       texture.style = style;
       world_.scene.textures.push_back(Texture::procedural(texture));
     }
+    if (style != TextureStyle::kVehicle && style != TextureStyle::kPedestrian) {
+      Texture& background = world_.scene.textures.back();
+      background = background.withContrast(options_.background_contrast);
+    }
     return static_cast<int>(world_.scene.textures.size()) - 1;
   }
 
@@ -427,11 +431,12 @@ class WorldBuilder {
 
   void addStaticAgents() {
     double travelled = 0.0;
-    double next_at = random_.uniform(0.0, layout_.static_spacing_m);
+    const double spacing_m = layout_.static_spacing_m / options_.parked_density;
+    double next_at = random_.uniform(0.0, spacing_m);
     for (std::size_t i = 1; i < samples_.position.size(); ++i) {
       travelled += (samples_.position[i] - samples_.position[i - 1]).head<2>().norm();
       if (travelled < next_at) continue;
-      next_at = travelled + layout_.static_spacing_m * random_.uniform(0.6, 1.4);
+      next_at = travelled + spacing_m * random_.uniform(0.6, 1.4);
       tryPlaceStaticAgent(i);
     }
   }
@@ -877,6 +882,13 @@ void MoverPatternOptions::validate() const {
 void WorldOptions::validate() const {
   if (!(ground_clearance_m > 0.0)) throw OptionError("ground_clearance_m", "must be > 0");
   if (!(texel_scale > 0.0)) throw OptionError("texel_scale", "must be > 0");
+  if (!(parked_density > 0.0 && parked_density <= 10.0)) {
+    throw OptionError("parked-density", fmt::format("must be in (0, 10], got {}", parked_density));
+  }
+  if (!(background_contrast > 0.0 && background_contrast <= 1.0)) {
+    throw OptionError("background-contrast",
+                      fmt::format("must be in (0, 1], got {}", background_contrast));
+  }
   pattern.validate();
   if (scene == SceneType::kIndoor &&
       (pattern.pattern == MoverPattern::kBus || pattern.pattern == MoverPattern::kConvoy)) {

@@ -182,6 +182,29 @@ TEST(TextureTest, FromImageConvertsColourAndUniformIsConstant) {
   EXPECT_FLOAT_EQ(Texture().sample({1.0, 2.0}, 0.5), 128.0f);
 }
 
+TEST(TextureTest, WithContrastScalesTheDeviationsFromTheMean) {
+  const Texture texture = makeProcedural(TextureStyle::kFacade, 7, 256, 256);
+  cv::Scalar mean, deviation;
+  cv::meanStdDev(texture.image(), mean, deviation);
+  const Texture weak = texture.withContrast(0.3);
+  cv::Scalar weak_mean, weak_deviation;
+  cv::meanStdDev(weak.image(), weak_mean, weak_deviation);
+  EXPECT_NEAR(weak_mean[0], mean[0], 0.5);
+  EXPECT_NEAR(weak_deviation[0] / deviation[0], 0.3, 0.01);
+  // Each texel moves towards the mean: rounding is the only other change.
+  const cv::Point texel(100, 50);
+  const double expected = mean[0] + 0.3 * (texture.image().at<std::uint8_t>(texel) - mean[0]);
+  EXPECT_NEAR(weak.image().at<std::uint8_t>(texel), expected, 0.5 + 1e-9);
+  // The mipmap is rebuilt from the new level 0: a footprint of 4 texels (level 2) is weakened too.
+  for (const Eigen::Vector2d& uv : {Eigen::Vector2d(1.0, 1.0), Eigen::Vector2d(0.37, 2.11)}) {
+    const double usual = texture.sample(uv, 0.04);
+    EXPECT_NEAR(weak.sample(uv, 0.04), mean[0] + 0.3 * (usual - mean[0]), 1.5);
+  }
+  EXPECT_EQ(cv::norm(texture.withContrast(1.0).image(), texture.image(), cv::NORM_INF), 0.0);
+  EXPECT_THROW(texture.withContrast(0.0), OptionError);
+  EXPECT_THROW(texture.withContrast(5.0), OptionError);
+}
+
 TEST(TextureTest, PhotoMosaicUsesCropsOfThePhotos) {
   // Two "photos": a horizontal ramp 0..99 and a vertical ramp 150..249.
   cv::Mat ramp_x(300, 400, CV_8UC1), ramp_y(300, 400, CV_8UC1);

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+#include <set>
+
 #include "superdyna/core/error.h"
 #include "superdyna/sim/agents.h"
 
@@ -94,6 +97,72 @@ TEST(WorldBuilderTest, SameSeedSameWorld) {
     EXPECT_EQ(a.agents[i].t_begin_ns, b.agents[i].t_begin_ns);
     EXPECT_EQ(a.agents[i].object_class, b.agents[i].object_class);
   }
+}
+
+/// Indices of the textures the static world (instance 0) or the agents use.
+std::set<int> texturesOf(const World& world, bool agents) {
+  std::set<int> textures;
+  for (const SceneObject& object : world.scene.objects) {
+    if ((object.instance_id != 0) != agents) continue;
+    for (const Quad& quad : object.quads)
+      textures.insert(quad.texture);
+  }
+  return textures;
+}
+
+double deviationOf(const Texture& texture) {
+  cv::Scalar mean, deviation;
+  cv::meanStdDev(texture.image(), mean, deviation);
+  return deviation[0];
+}
+
+TEST(WorldBuilderTest, BackgroundContrastWeakensTheStaticWorldOnly) {
+  const CameraPath path = straightDrive();
+  const World usual = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kMid), path);
+  WorldOptions options = coarseWorld(SceneType::kParking, DynamicLevel::kMid);
+  options.background_contrast = 0.3;
+  const World weak = buildWorld(options, path);
+  ASSERT_EQ(weak.scene.textures.size(), usual.scene.textures.size());
+  ASSERT_EQ(weak.agents.size(), usual.agents.size());
+  const std::set<int> background = texturesOf(usual, false);
+  const std::set<int> agents = texturesOf(usual, true);
+  ASSERT_FALSE(background.empty());
+  ASSERT_FALSE(agents.empty());
+  for (const int i : background) {
+    const auto k = static_cast<std::size_t>(i);
+    EXPECT_NEAR(deviationOf(weak.scene.textures[k]) / deviationOf(usual.scene.textures[k]), 0.3,
+                0.02)
+        << "texture " << i;
+  }
+  for (const int i : agents) {
+    const auto k = static_cast<std::size_t>(i);
+    EXPECT_EQ(
+        cv::norm(weak.scene.textures[k].image(), usual.scene.textures[k].image(), cv::NORM_INF),
+        0.0)
+        << "texture " << i;
+  }
+  options.background_contrast = 0.0;
+  EXPECT_THROW(options.validate(), OptionError);
+  options.background_contrast = 1.5;
+  EXPECT_THROW(options.validate(), OptionError);
+}
+
+TEST(WorldBuilderTest, ParkedDensityFillsTheLotWithStaticAgents) {
+  const CameraPath path = straightDrive();
+  const World usual = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kNone), path);
+  WorldOptions options = coarseWorld(SceneType::kParking, DynamicLevel::kNone);
+  options.parked_density = 4.0;
+  const World full = buildWorld(options, path);
+  // 100 m of path, a place tried every 5 m (usual: 20 agents) or every 1.25 m (full: 51; a
+  // place overlapping an earlier agent is skipped).
+  const int parked = countAgents(usual, false);
+  EXPECT_GE(parked, 15);
+  EXPECT_GE(countAgents(full, false), 2 * parked);
+  EXPECT_EQ(countAgents(full, true), 0);
+  options.parked_density = 0.0;
+  EXPECT_THROW(options.validate(), OptionError);
+  options.parked_density = 11.0;
+  EXPECT_THROW(options.validate(), OptionError);
 }
 
 TEST(WorldBuilderTest, ParsesNamesAndRejectsUnknownOnes) {

@@ -71,7 +71,8 @@ struct WorldSource {
   SceneType scene = SceneType::kStreet;
   std::uint64_t seed = 1;
   std::optional<std::filesystem::path> texture_dir;  ///< Absolute.
-  std::uint64_t fingerprint = 0;                     ///< staticWorldFingerprint of that world.
+  double background_contrast = 1.0;  ///< WorldOptions::background_contrast (1 when not written).
+  std::uint64_t fingerprint = 0;     ///< staticWorldFingerprint of that world.
 };
 
 /// Reads SEQ/simulation.yaml's world_source section; InputError naming the file and the key

@@ -68,6 +68,11 @@ class Texture {
   static Texture fromPhotos(const std::vector<cv::Mat>& photos, int width, int height,
                             double texel_m, std::uint64_t seed);
 
+  /// This texture with its contrast scaled by `factor` about its mean gray level: level 0 becomes
+  /// mean + factor * (gray - mean), rounded and saturated, and the mipmap is rebuilt. `factor` in
+  /// (0, 4] (else OptionError); 1 returns the texture unchanged.
+  Texture withContrast(double factor) const;
+
   /// Gray level [0, 255] at surface coordinates uv_m [m] (u along the image columns), averaged
   /// over a footprint of footprint_m [m] (the size of one rendered pixel on the surface):
   /// bilinear interpolation in the two mipmap levels around log2(footprint_m / texel_m), blended

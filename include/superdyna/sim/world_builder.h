@@ -64,6 +64,15 @@ struct WorldOptions {
   double ground_clearance_m = 1.2;
   /// Multiplies every texel size: > 1 gives coarser, faster-to-generate textures.
   double texel_scale = 1.0;
+  /// Contrast of the static world's textures (ground, walls, clutter; not the agents, parked or
+  /// moving) relative to their usual look, in (0, 1]: below 1 a weakly textured background, on
+  /// which parked cars and standing people hold a larger share of the features.
+  double background_contrast = 1.0;
+  /// Places for parked cars and standing people per metre of path relative to the scene's usual
+  /// number, in (0, 10]: a full parking lot (places overlapping an earlier agent are skipped,
+  /// so 4 gives about 2.5 times as many agents). The moving agents are drawn after them from the
+  /// same stream, so another density gives other movers too.
+  double parked_density = 1.0;
   /// Real photos (grayscale) to build textures from instead of procedural ones; may be empty.
   std::vector<cv::Mat> photos;
 
