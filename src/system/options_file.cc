@@ -204,6 +204,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"imu_translation_prediction", &t.imu_translation_prediction},
         {"imu_rotation_prior_sigma_deg", &t.imu_rotation_prior_sigma_deg},
         {"imu_min_keyframe_interval_s", &t.imu_min_keyframe_interval_s},
+        {"imu_weak_keyframes", &t.imu_weak_keyframes},
         {"imu_bridge_s", &t.imu_bridge_s},
         {"relocalization_s", &t.relocalization_s},
         {"relocalization_candidates", &t.relocalization_candidates},

@@ -759,7 +759,9 @@ features::Keypoint Tracker::queryKeypoint(map::MapPointId id) const {
 bool Tracker::needKeyFrame(const Frame& frame, int inliers) const {
   if (!isMonocular() && frame.numStereo() < options_.keyframe_min_stereo) return false;
   const TimeNs since_keyframe = frame.t_ns - t_reference_ns_;
-  if (imu_ && (isMonocular() || !inertialInitialized()) &&
+  const bool weak_inertial = options_.imu_weak_keyframes && isMonocular() &&
+                             inertialInitialized() && weakTracking(inliers);
+  if (imu_ && (isMonocular() || !inertialInitialized()) && !weak_inertial &&
       since_keyframe < secondsToNs(options_.imu_min_keyframe_interval_s)) {
     return false;
   }

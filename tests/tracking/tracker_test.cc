@@ -177,9 +177,11 @@ TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
 struct MonoInertialKeyFrames {
   std::vector<std::size_t> pending_before_init;
   std::vector<std::size_t> pending_after_init;
+  std::vector<TimeNs> t_after_init;  ///< Times of the keyframes after the initialisation.
 };
 
-MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
+MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba,
+                                        TrackerOptions options = TrackerOptions{}) {
   const auto source = openMonoSequence(true);
   FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
   mapping::LocalMapperOptions mapping;
@@ -189,7 +191,6 @@ MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
   mapping.inertial_init.min_duration_s = 1.0;
   mapping.inertial_init.estimate_scale = true;
   mapping.inertial_init.min_scale_excitation = 0.05;  // the street flight is smooth
-  TrackerOptions options;
   options.mono_inertial_wait_for_keyframe_ba = wait_for_keyframe_ba;
   Tracker tracker(options, PyramidInfo{}, mapping, source->camera0(), std::nullopt, source->imu());
   ManualMappingSink busy(false);
@@ -200,6 +201,7 @@ MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba) {
     const TrackingResult result = tracker.track(front_end.build(*bundle));
     if (!result.keyframe || result.state != TrackingState::kTracking) continue;
     (initialized ? out.pending_after_init : out.pending_before_init).push_back(busy.pending());
+    if (initialized) out.t_after_init.push_back(result.t_ns);
   }
   return out;
 }
@@ -221,6 +223,29 @@ TEST(MonoTracker, MonoInertialWaitsForEachKeyFramesLocalBaOnceInitialised) {
   ASSERT_FALSE(not_waiting.pending_after_init.empty());
   for (const std::size_t pending : not_waiting.pending_after_init)
     EXPECT_GT(pending, 0u);
+}
+
+double minGapSeconds(const std::vector<TimeNs>& times) {
+  double gap = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < times.size(); ++i)
+    gap = std::min(gap, nsToSeconds(times[i] - times[i - 1]));
+  return gap;
+}
+
+TEST(MonoTracker, MonoInertialWeakTrackingTakesAKeyFrameBeforeTheMinimumInterval) {
+  // Every frame tracks "weakly" (keyframe_weak_inliers above any inlier count): once the map is
+  // inertial, keyframes come sooner than imu_min_keyframe_interval_s (ORB-SLAM3's rule), and
+  // not at all without imu_weak_keyframes.
+  TrackerOptions options;
+  options.keyframe_weak_inliers = 100000;
+  const MonoInertialKeyFrames weak = trackMonoInertial(true, options);
+  ASSERT_GE(weak.t_after_init.size(), 3u);
+  EXPECT_LT(minGapSeconds(weak.t_after_init), options.imu_min_keyframe_interval_s - 1e-6);
+  options.imu_weak_keyframes = false;
+  const MonoInertialKeyFrames spaced = trackMonoInertial(true, options);
+  ASSERT_GE(spaced.t_after_init.size(), 3u);
+  EXPECT_GE(minGapSeconds(spaced.t_after_init), options.imu_min_keyframe_interval_s - 1e-6);
+  EXPECT_GT(weak.t_after_init.size(), spaced.t_after_init.size());
 }
 
 /// The first 1.5 s of the street sequence of issue 18 (street77: EuRoC V2_02 from 5 s, seed 77).

@@ -14,8 +14,10 @@
 // new points only from the local mapper's triangulation. With an IMU (mono-inertial) the local
 // mapper's inertial initialisation (as for stereo-inertial, with the scale estimated too) makes the
 // map metric and gravity-aligned; until then the IMU only predicts rotations. Keyframes of a
-// monocular-inertial map are always at least imu_min_keyframe_interval_s apart (ORB-SLAM3 inserts
-// them every 0.25-0.5 s): more frequent ones add little parallax and cost local BA time.
+// monocular-inertial map are at least imu_min_keyframe_interval_s apart (ORB-SLAM3 inserts them
+// every 0.25-0.5 s): more frequent ones add little parallax and cost local BA time. Once the map
+// is inertial, a weakly tracked frame becomes a keyframe sooner (imu_weak_keyframes, ORB-SLAM3's
+// rule): where the view changes fast, waiting lets the tracked points run out.
 //
 // Monocular maps with a mapping thread (MappingSink): tracking needs the points the mapper
 // triangulates from the previous keyframe, so the tracker never runs more than one keyframe ahead
@@ -98,6 +100,11 @@ struct TrackerOptions {
   /// near-zero preintegration covariance, so the visual pose noise would dominate the
   /// initialisation.
   double imu_min_keyframe_interval_s = 0.25;
+  /// Monocular with IMU, after the inertial initialisation: weak tracking (fewer than
+  /// keyframe_weak_inliers inliers) overrides imu_min_keyframe_interval_s, as ORB-SLAM3 inserts a
+  /// mono-inertial keyframe whenever fewer than 75 points are tracked. Without it a parking lot
+  /// whose movers were removed lost track for good 0.2 s after a keyframe (README).
+  bool imu_weak_keyframes = true;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
   /// After the inertial initialisation, tracking failures keep the map and report the IMU
