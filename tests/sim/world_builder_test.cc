@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <opencv2/core.hpp>
 #include <set>
+#include <utility>
 
 #include "superdyna/core/error.h"
 #include "superdyna/sim/agents.h"
@@ -116,12 +118,19 @@ double deviationOf(const Texture& texture) {
   return deviation[0];
 }
 
-TEST(WorldBuilderTest, BackgroundContrastWeakensTheStaticWorldOnly) {
+/// The parking world of `level` on straightDrive() with the usual options and with `change`.
+std::pair<World, World> usualAndChangedParking(DynamicLevel level,
+                                               const std::function<void(WorldOptions&)>& change) {
   const CameraPath path = straightDrive();
-  const World usual = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kMid), path);
-  WorldOptions options = coarseWorld(SceneType::kParking, DynamicLevel::kMid);
-  options.background_contrast = 0.3;
-  const World weak = buildWorld(options, path);
+  WorldOptions options = coarseWorld(SceneType::kParking, level);
+  World usual = buildWorld(options, path);
+  change(options);
+  return {std::move(usual), buildWorld(options, path)};
+}
+
+TEST(WorldBuilderTest, BackgroundContrastWeakensTheStaticWorldOnly) {
+  const auto [usual, weak] = usualAndChangedParking(
+      DynamicLevel::kMid, [](WorldOptions& options) { options.background_contrast = 0.3; });
   ASSERT_EQ(weak.scene.textures.size(), usual.scene.textures.size());
   ASSERT_EQ(weak.agents.size(), usual.agents.size());
   const std::set<int> background = texturesOf(usual, false);
@@ -141,28 +150,30 @@ TEST(WorldBuilderTest, BackgroundContrastWeakensTheStaticWorldOnly) {
         0.0)
         << "texture " << i;
   }
-  options.background_contrast = 0.0;
-  EXPECT_THROW(options.validate(), OptionError);
-  options.background_contrast = 1.5;
-  EXPECT_THROW(options.validate(), OptionError);
 }
 
 TEST(WorldBuilderTest, ParkedDensityFillsTheLotWithStaticAgents) {
-  const CameraPath path = straightDrive();
-  const World usual = buildWorld(coarseWorld(SceneType::kParking, DynamicLevel::kNone), path);
-  WorldOptions options = coarseWorld(SceneType::kParking, DynamicLevel::kNone);
-  options.parked_density = 4.0;
-  const World full = buildWorld(options, path);
+  const auto [usual, full] = usualAndChangedParking(
+      DynamicLevel::kNone, [](WorldOptions& options) { options.parked_density = 4.0; });
   // 100 m of path, a place tried every 5 m (usual: 20 agents) or every 1.25 m (full: 51; a
   // place overlapping an earlier agent is skipped).
   const int parked = countAgents(usual, false);
   EXPECT_GE(parked, 15);
   EXPECT_GE(countAgents(full, false), 2 * parked);
   EXPECT_EQ(countAgents(full, true), 0);
-  options.parked_density = 0.0;
-  EXPECT_THROW(options.validate(), OptionError);
-  options.parked_density = 11.0;
-  EXPECT_THROW(options.validate(), OptionError);
+}
+
+TEST(WorldBuilderTest, BackgroundContrastAndParkedDensityOutOfRangeAreErrors) {
+  for (const double contrast : {0.0, -0.1, 1.5}) {
+    WorldOptions options;
+    options.background_contrast = contrast;
+    EXPECT_THROW(options.validate(), OptionError) << contrast;
+  }
+  for (const double density : {0.0, 11.0}) {
+    WorldOptions options;
+    options.parked_density = density;
+    EXPECT_THROW(options.validate(), OptionError) << density;
+  }
 }
 
 TEST(WorldBuilderTest, ParsesNamesAndRejectsUnknownOnes) {
