@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -257,8 +258,12 @@ bool StereoMatcher::acceptsPoint(const Eigen::Vector3d& p_c0) const {
 namespace {
 
 constexpr int kSadHalfWindow = 5;  ///< 11x11 windows.
+constexpr int kSadWindowSide = 2 * kSadHalfWindow + 1;
+/// The gray levels of an 11x11 window, row by row.
+using SadWindow = std::array<float, kSadWindowSide * kSadWindowSide>;
 
-float sumAbsoluteDifferences(const std::vector<float>& a, const std::vector<float>& b) {
+template <class Window>
+float sumAbsoluteDifferences(const Window& a, const Window& b) {
   float sad = 0.0f;
   for (std::size_t k = 0; k < a.size(); ++k)
     sad += std::abs(a[k] - b[k]);
@@ -275,26 +280,42 @@ std::optional<double> parabolaMinimum(double a, double b, double c) {
   return offset;
 }
 
-/// Bilinear sample of `image` (CV_8UC1) at (x, y); the caller keeps (x, y) one pixel inside.
-float bilinear(const cv::Mat& image, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const double ax = x - x0, ay = y - y0;
-  const std::uint8_t* top = image.ptr<std::uint8_t>(y0);
-  const std::uint8_t* bottom = image.ptr<std::uint8_t>(y0 + 1);
-  const double value = (1.0 - ay) * ((1.0 - ax) * top[x0] + ax * top[x0 + 1]) +
-                       ay * ((1.0 - ax) * bottom[x0] + ax * bottom[x0 + 1]);
-  return static_cast<float>(value);
+/// The bilinear taps of a window's 11 columns (or rows) centred at `centre`: per offset -5..5 the
+/// pixel at or before it and the weight of the next one. A window's 121 samples share them.
+struct WindowTaps {
+  std::array<int, kSadWindowSide> pixel{};
+  std::array<double, kSadWindowSide> weight{};
+};
+
+WindowTaps windowTaps(double centre) {
+  WindowTaps taps;
+  for (int d = -kSadHalfWindow; d <= kSadHalfWindow; ++d) {
+    const double v = centre + d;
+    const auto i = static_cast<std::size_t>(d + kSadHalfWindow);
+    taps.pixel[i] = static_cast<int>(std::floor(v));
+    taps.weight[i] = v - taps.pixel[i];
+  }
+  return taps;
 }
 
-/// Zero-mean 11x11 window of `image` centred at the sub-pixel point `centre` (bilinear).
-std::vector<float> zeroMeanWindowAt(const cv::Mat& image, const Eigen::Vector2d& centre) {
-  std::vector<float> window;
-  window.reserve((2 * kSadHalfWindow + 1) * (2 * kSadHalfWindow + 1));
+/// Zero-mean 11x11 window of `image` (CV_8UC1) centred at the sub-pixel point `centre`, each
+/// sample bilinear; the caller keeps the window one pixel inside the image (windowFits).
+SadWindow zeroMeanWindowAt(const cv::Mat& image, const Eigen::Vector2d& centre) {
+  const WindowTaps columns = windowTaps(centre.x()), rows = windowTaps(centre.y());
+  SadWindow window;
   double sum = 0.0;
-  for (int dy = -kSadHalfWindow; dy <= kSadHalfWindow; ++dy) {
-    for (int dx = -kSadHalfWindow; dx <= kSadHalfWindow; ++dx) {
-      window.push_back(bilinear(image, centre.x() + dx, centre.y() + dy));
-      sum += window.back();
+  for (std::size_t r = 0; r < rows.pixel.size(); ++r) {
+    const std::uint8_t* top = image.ptr<std::uint8_t>(rows.pixel[r]);
+    const std::uint8_t* bottom = image.ptr<std::uint8_t>(rows.pixel[r] + 1);
+    const double ay = rows.weight[r];
+    for (std::size_t c = 0; c < columns.pixel.size(); ++c) {
+      const int x0 = columns.pixel[c];
+      const double ax = columns.weight[c];
+      const double value = (1.0 - ay) * ((1.0 - ax) * top[x0] + ax * top[x0 + 1]) +
+                           ay * ((1.0 - ax) * bottom[x0] + ax * bottom[x0 + 1]);
+      float& sample = window[r * columns.pixel.size() + c];
+      sample = static_cast<float>(value);
+      sum += sample;
     }
   }
   const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
@@ -317,8 +338,9 @@ bool windowFits(const cv::Mat& image, const Eigen::Vector2d& centre, double reac
 std::optional<double> sadMinimumAlong(const cv::Mat& left_image, const Eigen::Vector2d& centre,
                                       const cv::Mat& right_image, const Eigen::Vector2d& at,
                                       const Eigen::Vector2d& step, int search) {
-  const std::vector<float> window = zeroMeanWindowAt(left_image, centre);
+  const SadWindow window = zeroMeanWindowAt(left_image, centre);
   std::vector<float> sads;
+  sads.reserve(static_cast<std::size_t>(2 * search + 1));
   for (int k = -search; k <= search; ++k)
     sads.push_back(sumAbsoluteDifferences(window, zeroMeanWindowAt(right_image, at + k * step)));
   const auto best = std::min_element(sads.begin(), sads.end());

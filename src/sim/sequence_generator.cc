@@ -949,7 +949,14 @@ WorldSource readWorldSource(const fs::path& sequence) {
   source.scene = parseSceneType(text("scene"));
   source.seed = integer("seed");
   source.texture_dir = path("texture_dir", "procedural");
-  if (node["background_contrast"]) source.background_contrast = number("background_contrast");
+  if (node["background_contrast"]) {
+    source.background_contrast = number("background_contrast");
+    if (!(source.background_contrast > 0.0 && source.background_contrast <= 1.0)) {
+      throw InputError(
+          yaml.at(node["background_contrast"], "world_source.background_contrast"),
+          fmt::format("expected a number in (0, 1], got {}", source.background_contrast));
+    }
+  }
   source.fingerprint = integer("static_world_fingerprint");
   return source;
 }

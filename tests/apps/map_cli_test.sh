@@ -38,6 +38,13 @@ cmp -s "$work/a/mav0/cam0/data.csv" "$work/b/mav0/cam0/data.csv" &&
   { echo "the second sequence has the first one's frames"; exit 1; }
 expect_refusal "is a street scene" "$superdyna" simulate --out "$work/c" --world-of "$work/a" \
   --scene indoor --duration 2
+expect_refusal "has background contrast 1" "$superdyna" simulate --out "$work/c" \
+  --world-of "$work/a" --background-contrast 0.5 --duration 2
+mkdir -p "$work/a-edited"
+sed 's/^  background_contrast: 1$/  background_contrast: 2/' "$work/a/simulation.yaml" \
+  >"$work/a-edited/simulation.yaml"
+expect_refusal "world_source.background_contrast" "$superdyna" simulate --out "$work/c" \
+  --world-of "$work/a-edited" --duration 2
 echo "world reused, fingerprint $(fingerprint "$work/a")"
 
 echo "-- 2. saving a map, refused combinations"
