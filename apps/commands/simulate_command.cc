@@ -148,8 +148,9 @@ class SimulateCommand : public Command {
         ->check(CLI::Range(0.01, 1.0))
         ->capture_default_str();
     sub_->add_option("--parked-density", options_.world.parked_density,
-                     "Parked cars and standing people per metre of path, relative to the scene's "
-                     "usual number (a full parking lot: 4); other values also draw other movers")
+                     "Places tried for parked cars and standing people per metre of path, "
+                     "relative to the scene's usual number (a full parking lot: 4, about 2.5x the "
+                     "agents; places taken are skipped); other values also draw other movers")
         ->check(CLI::Range(0.1, 10.0))
         ->capture_default_str();
     sub_->add_option("--rosbag", rosbag_,

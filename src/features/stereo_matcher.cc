@@ -270,6 +270,17 @@ float sumAbsoluteDifferences(const Window& a, const Window& b) {
   return sad;
 }
 
+/// Subtracts the window's mean (summed in double, in storage order) from every sample.
+template <class Window>
+void subtractMean(Window& window) {
+  double sum = 0.0;
+  for (const float v : window)
+    sum += v;
+  const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
+  for (float& v : window)
+    v -= mean;
+}
+
 /// Sub-pixel offset of the minimum of the parabola through (-1, a), (0, b), (1, c); nullopt when
 /// the parabola is flat or opens downwards, or its minimum lies more than one sample away.
 std::optional<double> parabolaMinimum(double a, double b, double c) {
@@ -303,7 +314,6 @@ WindowTaps windowTaps(double centre) {
 SadWindow zeroMeanWindowAt(const cv::Mat& image, const Eigen::Vector2d& centre) {
   const WindowTaps columns = windowTaps(centre.x()), rows = windowTaps(centre.y());
   SadWindow window;
-  double sum = 0.0;
   for (std::size_t r = 0; r < rows.pixel.size(); ++r) {
     const std::uint8_t* top = image.ptr<std::uint8_t>(rows.pixel[r]);
     const std::uint8_t* bottom = image.ptr<std::uint8_t>(rows.pixel[r] + 1);
@@ -313,14 +323,10 @@ SadWindow zeroMeanWindowAt(const cv::Mat& image, const Eigen::Vector2d& centre) 
       const double ax = columns.weight[c];
       const double value = (1.0 - ay) * ((1.0 - ax) * top[x0] + ax * top[x0 + 1]) +
                            ay * ((1.0 - ax) * bottom[x0] + ax * bottom[x0 + 1]);
-      float& sample = window[r * columns.pixel.size() + c];
-      sample = static_cast<float>(value);
-      sum += sample;
+      window[r * columns.pixel.size() + c] = static_cast<float>(value);
     }
   }
-  const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
-  for (float& v : window)
-    v -= mean;
+  subtractMean(window);
   return window;
 }
 
@@ -422,17 +428,12 @@ namespace {
 std::vector<float> zeroMeanWindow(const cv::Mat& image, int x, int y, int half) {
   std::vector<float> window;
   window.reserve(static_cast<std::size_t>((2 * half + 1) * (2 * half + 1)));
-  double sum = 0.0;
   for (int dy = -half; dy <= half; ++dy) {
     const std::uint8_t* row = image.ptr<std::uint8_t>(y + dy);
-    for (int dx = -half; dx <= half; ++dx) {
+    for (int dx = -half; dx <= half; ++dx)
       window.push_back(row[x + dx]);
-      sum += row[x + dx];
-    }
   }
-  const float mean = static_cast<float>(sum / static_cast<double>(window.size()));
-  for (float& v : window)
-    v -= mean;
+  subtractMean(window);
   return window;
 }
 

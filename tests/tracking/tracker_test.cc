@@ -128,12 +128,19 @@ MonoRun trackMono(const TrackerOptions& options, ManualMappingSink* sink) {
 }
 
 /// Smallest gap between consecutive tracked keyframes [s].
-double minKeyFrameGapSeconds(const MonoRun& run) {
-  double gap = 1e9;
-  for (std::size_t k = 1; k < run.keyframes.size(); ++k) {
-    gap = std::min(gap, nsToSeconds(run.keyframes[k].t_ns - run.keyframes[k - 1].t_ns));
-  }
+/// Shortest time between consecutive `times` [s]; infinite for fewer than two.
+double minGapSeconds(const std::vector<TimeNs>& times) {
+  double gap = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < times.size(); ++i)
+    gap = std::min(gap, nsToSeconds(times[i] - times[i - 1]));
   return gap;
+}
+
+double minKeyFrameGapSeconds(const MonoRun& run) {
+  std::vector<TimeNs> times;
+  for (const MonoKeyFrame& kf : run.keyframes)
+    times.push_back(kf.t_ns);
+  return minGapSeconds(times);
 }
 
 TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
@@ -225,17 +232,10 @@ TEST(MonoTracker, MonoInertialWaitsForEachKeyFramesLocalBaOnceInitialised) {
     EXPECT_GT(pending, 0u);
 }
 
-double minGapSeconds(const std::vector<TimeNs>& times) {
-  double gap = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 1; i < times.size(); ++i)
-    gap = std::min(gap, nsToSeconds(times[i] - times[i - 1]));
-  return gap;
-}
-
 TEST(MonoTracker, MonoInertialWeakTrackingTakesAKeyFrameBeforeTheMinimumInterval) {
   // Every frame tracks "weakly" (keyframe_weak_inliers above any inlier count): once the map is
-  // inertial, keyframes come sooner than imu_min_keyframe_interval_s (ORB-SLAM3's rule), and
-  // not at all without imu_weak_keyframes.
+  // inertial, keyframes come sooner than imu_min_keyframe_interval_s (ORB-SLAM3's rule); without
+  // imu_weak_keyframes never sooner.
   TrackerOptions options;
   options.keyframe_weak_inliers = 100000;
   const MonoInertialKeyFrames weak = trackMonoInertial(true, options);
