@@ -1,5 +1,6 @@
 #include "superdyna/features/orb_descriptor.h"
 
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <numbers>
@@ -81,6 +82,28 @@ const std::array<BriefPair, 256>& briefPattern() {
   return pattern;
 }
 
+namespace {
+
+/// The pattern's points as doubles, pair i's first point at 2 i and second at 2 i + 1.
+constexpr std::size_t kPatternPoints = 512;
+struct PatternPoints {
+  std::array<double, kPatternPoints> x, y;
+};
+
+PatternPoints patternPoints() {
+  PatternPoints points{};
+  const auto& pattern = briefPattern();
+  for (std::size_t i = 0; i < pattern.size(); ++i) {
+    points.x[2 * i] = pattern[i].x0;
+    points.y[2 * i] = pattern[i].y0;
+    points.x[2 * i + 1] = pattern[i].x1;
+    points.y[2 * i + 1] = pattern[i].y1;
+  }
+  return points;
+}
+
+}  // namespace
+
 float intensityCentroidAngle(const cv::Mat& image, cv::Point center) {
   assert(image.type() == CV_8UC1);
   assert(center.x >= kOrbPatchRadius && center.y >= kOrbPatchRadius &&
@@ -114,21 +137,24 @@ void computeSteeredBrief(const cv::Mat& smoothed, cv::Point center, float angle_
   assert(smoothed.type() == CV_8UC1);
   assert(center.x >= kOrbPatchRadius && center.y >= kOrbPatchRadius &&
          center.x + kOrbPatchRadius < smoothed.cols && center.y + kOrbPatchRadius < smoothed.rows);
+  static const PatternPoints points = patternPoints();
   const double angle = static_cast<double>(angle_deg) * std::numbers::pi / 180.0;
   const double cs = std::cos(angle), sn = std::sin(angle);
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(smoothed.step1());
   const std::uint8_t* c = smoothed.ptr<std::uint8_t>(center.y) + center.x;
   // Rotating a point of the disc keeps it in the disc, and rounding keeps |offset| <= radius.
   // cvRound rounds to nearest (ties to even): deterministic and much faster than std::lround.
-  const auto offset = [&](int x, int y) -> std::ptrdiff_t {
-    return cvRound(sn * x + cs * y) * step + cvRound(cs * x - sn * y);
-  };
-  const auto& pattern = briefPattern();
-  for (int byte = 0; byte < kOrbDescriptorBytes; ++byte) {
+  // All offsets first, then the tests: the loads of the second loop do not wait on each other.
+  std::array<std::ptrdiff_t, kPatternPoints> offsets;
+  for (std::size_t i = 0; i < kPatternPoints; ++i) {
+    const double x = points.x[i], y = points.y[i];
+    offsets[i] = cvRound(sn * x + cs * y) * step + cvRound(cs * x - sn * y);
+  }
+  for (std::size_t byte = 0; byte < static_cast<std::size_t>(kOrbDescriptorBytes); ++byte) {
     unsigned value = 0;
-    for (int bit = 0; bit < 8; ++bit) {
-      const BriefPair& pair = pattern[static_cast<std::size_t>(byte * 8 + bit)];
-      if (c[offset(pair.x0, pair.y0)] < c[offset(pair.x1, pair.y1)]) value |= 1u << bit;
+    for (std::size_t bit = 0; bit < 8; ++bit) {
+      const std::size_t pair = 2 * (byte * 8 + bit);
+      value |= static_cast<unsigned>(c[offsets[pair]] < c[offsets[pair + 1]]) << bit;
     }
     out[byte] = static_cast<std::uint8_t>(value);
   }

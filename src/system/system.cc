@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 
@@ -238,7 +239,6 @@ sensors::InstanceMasks System::segment(const sensors::FrameBundle& bundle) {
     right = segmenter_->segment(bundle.image1, bundle.t_ns, 1);
   }
   segment_ms_ += 1e3 * secondsSince(start);
-  ++segmented_frames_;
   return semantics::toInstanceMasks(left, right, segmenter_->idsNameObjects());
 }
 
@@ -250,31 +250,59 @@ sensors::InstanceMasks System::propagate(const features::FeatureSet& left) {
   return masks;
 }
 
+bool System::segmentsFrame(std::size_t built) const {
+  const auto every = static_cast<std::size_t>(options_.semantics.every_n_frames);
+  return built % every == 0 || !propagator_.hasReference();
+}
+
+void System::startSegmentation(const sensors::FrameBundle& bundle) {
+  if (!segment_thread_) segment_thread_ = std::make_unique<TaskThread>();
+  segmenting_bundle_ = bundle;
+  segmented_masks_.reset();
+  segment_thread_->run([this] { segmented_masks_ = segment(segmenting_bundle_); });
+  segmenting_ = true;
+}
+
+sensors::InstanceMasks System::finishSegmentation() {
+  segmenting_ = false;
+  segment_thread_->wait();
+  ++segmented_frames_;
+  segmenting_bundle_ = {};
+  return std::move(*segmented_masks_);
+}
+
+void System::discardSegmentation() {
+  if (!segmenting_) return;
+  segmenting_ = false;
+  try {
+    segment_thread_->wait();
+  } catch (...) {  // the frame is not built: its segmentation's error does not matter
+  }
+  segmenting_bundle_ = {};
+}
+
+void System::segmentAhead(const sensors::FrameBundle& next) {
+  if (!segmenter_ || next.masks || segmenting_) return;
+  const std::size_t built = segmented_frames_ + propagated_frames_;  // the frame before `next`
+  if (segmentsFrame(built) || !segmentsFrame(built + 1)) return;
+  startSegmentation(next);
+}
+
 tracking::Frame System::buildSegmentedFrame(const sensors::FrameBundle& bundle,
                                             std::optional<sensors::InstanceMasks>& masks) {
-  const auto every = static_cast<std::size_t>(options_.semantics.every_n_frames);
-  const std::size_t built = segmented_frames_ + propagated_frames_;
-  const bool fresh = built % every == 0 || !propagator_.hasReference();
-  if (fresh) {
-    if (!segment_thread_) segment_thread_ = std::make_unique<TaskThread>();
-    segment_thread_->run([&] { masks = segment(bundle); });
+  const bool fresh = segmentsFrame(segmented_frames_ + propagated_frames_);
+  if (fresh && segmenting_ && segmenting_bundle_.t_ns != bundle.t_ns) {
+    throw std::logic_error("System: a segmentation was started ahead for another frame");
   }
+  if (fresh && !segmenting_) startSegmentation(bundle);
   tracking::Frame frame;
   try {
     frame = front_end_.build(bundle, [&](const features::FeatureSet& left) {
-      if (fresh) {
-        segment_thread_->wait();
-      } else {
-        masks = propagate(left);
-      }
+      masks = fresh ? finishSegmentation() : propagate(left);
       return masks;
     });
   } catch (...) {
-    // The job refers to `bundle` and `masks`: let it finish before they go.
-    try {
-      if (fresh) segment_thread_->wait();
-    } catch (...) {
-    }
+    discardSegmentation();  // the job reads segmenting_bundle_: let it finish first
     throw;
   }
   if (masks) propagator_.setReference(*masks, frame.features);
@@ -370,15 +398,25 @@ void System::runConcurrently(io::DatasetSource& source, const FrameCallback& on_
   double front_end_ms = 0.0;
   std::thread front_end([&] {
     const double cpu_start = threadCpuMs();
+    // Segmenting one frame in N, the front end reads a bundle ahead, so that the network starts
+    // on a frame to be segmented while the frame before it is built (segmentAhead).
+    const bool read_ahead = segmenter_ && options_.semantics.every_n_frames > 1;
     try {
-      while (true) {
-        const std::optional<sensors::FrameBundle> bundle = source.next();
-        if (!bundle) break;
-        if (!frames.push(buildFrame(*bundle))) break;  // tracking stopped early
+      std::optional<sensors::FrameBundle> next = source.next();
+      while (next) {
+        const sensors::FrameBundle bundle = std::move(*next);
+        next.reset();
+        if (read_ahead) {
+          next = source.next();
+          if (next) segmentAhead(*next);
+        }
+        if (!frames.push(buildFrame(bundle))) break;  // tracking stopped early
+        if (!read_ahead) next = source.next();
       }
     } catch (...) {
       front_end_error = std::current_exception();
     }
+    discardSegmentation();
     front_end_ms = threadCpuMs() - cpu_start;
     frames.close();
   });

@@ -153,5 +153,49 @@ TEST(SystemSegmenter, PropagatedMasksFollowTheObjectsBetweenSegmentedFrames) {
   EXPECT_LT(score.propagated_false, score.background / 100);
 }
 
+/// The class of every left keypoint of every frame, frame by frame, segmenting one frame in 3.
+std::vector<std::vector<int>> labelsSegmentingOneFrameIn3(bool deterministic,
+                                                          std::size_t* segmented) {
+  const fs::path& path = colourStreet();
+  const auto source =
+      io::openDataset(io::DatasetKind::kEuroc, path, {.inertial = false, .instance_masks = false});
+  SystemOptions options;
+  options.mode = SensorMode::kStereo;
+  options.deterministic = deterministic;
+  options.semantics.segmenter = "dataset";
+  options.semantics.every_n_frames = 3;
+  System slam(options, source->camera0(), source->camera1(), source->imu(),
+              semantics::makeSegmenter(options.semantics, path));
+  std::vector<std::vector<int>> labels;
+  slam.setFrontEndCallback([&](const sensors::FrameBundle&, const tracking::Frame& frame) {
+    std::vector<int>& classes = labels.emplace_back();
+    for (const features::Keypoint& k : frame.features.keypoints)
+      classes.push_back(k.class_id);
+  });
+  slam.run(*source);
+  *segmented = slam.timings().segmented_frames;
+  return labels;
+}
+
+TEST(SystemSegmenter, SegmentingAFrameAheadLabelsTheKeypointsAsTheSequentialPipeline) {
+  // The concurrent pipeline reads a bundle ahead and starts segmenting a frame to be segmented
+  // while the frame before it is built; the masks, and so the labels, are those of the sequential
+  // pipeline, which segments each frame beside its own extraction.
+  std::size_t sequential_segmented = 0, concurrent_segmented = 0;
+  const auto sequential = labelsSegmentingOneFrameIn3(true, &sequential_segmented);
+  const auto concurrent = labelsSegmentingOneFrameIn3(false, &concurrent_segmented);
+  ASSERT_EQ(sequential.size(), 21u);  // 1 s at 20 Hz
+  EXPECT_EQ(sequential_segmented, 7u);
+  EXPECT_EQ(concurrent_segmented, 7u);
+  ASSERT_EQ(concurrent.size(), sequential.size());
+  long on_objects = 0;
+  for (std::size_t i = 0; i < sequential.size(); ++i) {
+    EXPECT_EQ(concurrent[i], sequential[i]) << "frame " << i;
+    for (const int c : sequential[i])
+      on_objects += c != features::kClassBackground;
+  }
+  EXPECT_GT(on_objects, 300);
+}
+
 }  // namespace
 }  // namespace superdyna::system

@@ -219,10 +219,24 @@ class System {
   /// there is one. Runs in the front-end thread.
   tracking::Frame buildFrame(const sensors::FrameBundle& bundle);
   /// The front end's frame of a bundle labelled with masks: the segmenter's, computed beside the
-  /// feature extraction, on every N-th frame (SegmenterOptions::every_n_frames), else propagated
-  /// from the frame before. `masks` receives them.
+  /// feature extraction (or started ahead, segmentAhead), on every N-th frame
+  /// (SegmenterOptions::every_n_frames), else propagated from the frame before. `masks` receives
+  /// them.
   tracking::Frame buildSegmentedFrame(const sensors::FrameBundle& bundle,
                                       std::optional<sensors::InstanceMasks>& masks);
+  /// Concurrent pipeline: starts segmenting `next`, the bundle after the one about to be built,
+  /// when it will be segmented and the segmentation thread is free, so that the network runs
+  /// beside the building of the frame before it as well. The masks are the same as when started
+  /// with the frame's own build; only the waiting changes.
+  void segmentAhead(const sensors::FrameBundle& next);
+  /// Whether the frame built after `built` earlier ones is segmented rather than propagated.
+  bool segmentsFrame(std::size_t built) const;
+  /// Starts segmenting `bundle` (a shallow copy is kept) on the segmentation thread.
+  void startSegmentation(const sensors::FrameBundle& bundle);
+  /// Waits for the segmentation started by startSegmentation and returns its masks.
+  sensors::InstanceMasks finishSegmentation();
+  /// Waits for a segmentation started ahead for a frame that will not be built (the run ended).
+  void discardSegmentation();
   /// The segmenter's masks of both images of a bundle.
   sensors::InstanceMasks segment(const sensors::FrameBundle& bundle);
   /// The masks of a frame not segmented, propagated from the frame before.
@@ -245,9 +259,15 @@ class System {
   tracking::FrontEnd front_end_;
   std::unique_ptr<semantics::Segmenter> segmenter_;
   FrontEndCallback front_end_callback_;
-  double segment_ms_ = 0.0;  ///< Front-end thread's segmentation time, copied to timings_.
+  double segment_ms_ = 0.0;  ///< Segmentation thread's time per job, summed; copied to timings_.
   std::size_t segmented_frames_ = 0, propagated_frames_ = 0;  ///< Copied to timings_.
   double propagate_ms_ = 0.0;                                 ///< Copied to timings_.
+  /// The bundle being segmented on segment_thread_ (a shallow copy: the job reads it) and the
+  /// masks the job writes; segmenting_ while a job has been started and not waited for. Declared
+  /// before segment_thread_, which waits for its job when destroyed.
+  sensors::FrameBundle segmenting_bundle_;
+  std::optional<sensors::InstanceMasks> segmented_masks_;
+  bool segmenting_ = false;
   std::unique_ptr<TaskThread> segment_thread_;  ///< Segments while the front end extracts.
   semantics::MaskPropagator propagator_;        ///< Masks of the frames not segmented.
   /// Declared before mapping_ (destroyed after it): the mapping jobs call it.
