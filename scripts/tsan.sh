@@ -14,7 +14,8 @@
 #
 # What runs: the bounded queue and task thread (core_test), the map's update transaction and
 # concurrent observation changes (map_test), a local BA against a reader under the map's read lock
-# (mapping_test), the mapping worker and the concurrent pipeline's error paths (system_test); then
+# (mapping_test), the mapping worker, the concurrent pipeline's error paths and its segmentation
+# thread started a frame ahead with the dataset segmenter (system_test); then
 # `superdyna run` in the concurrent pipeline - stereo-inertial (front-end thread, tracking, local
 # mapping thread, loop closing thread), mono-inertial and mono (the tracker waits for the mapping
 # thread at keyframes and for the inertial initialisation) - on a 7 s sequence simulated once into
@@ -53,9 +54,9 @@ run core_test 'BoundedQueue.*:TaskThread.*'
 run map_test 'MapUpdate.*:MapTest.Concurrent*'
 run mapping_test 'BundleAdjustmentTest.AReaderUnderTheReadLock*'
 if [ "$quick" = 1 ]; then
-  run system_test 'MappingWorker.*:ConcurrentSlam.A*Error*'
+  run system_test 'MappingWorker.*:ConcurrentSlam.A*Error*:SystemSegmenter.SegmentingAFrameAhead*'
 else
-  run system_test 'MappingWorker.*:ConcurrentSlam.*:Relocalisation.PlaceRecognitionWorksWhile*:LoopClosing.*Concurrent*'
+  run system_test 'MappingWorker.*:ConcurrentSlam.*:Relocalisation.PlaceRecognitionWorksWhile*:LoopClosing.*Concurrent*:SystemSegmenter.SegmentingAFrameAhead*'
 fi
 
 sequence="$build_dir/tsan_sequence"

@@ -58,7 +58,11 @@ void MaskPropagator::setReference(const sensors::InstanceMasks& masks,
   reference.cam0 = masks.cam0;
   reference.class_of_instance = masks.class_of_instance;
   reference_masks_ = std::move(reference);
+  // Its own copy of the descriptors: the frame's share a buffer with the tracker's thread, whose
+  // release the propagator would otherwise race with in ThreadSanitizer's view (OpenCV's
+  // reference count is atomic, but in an uninstrumented library).
   reference_features_ = left;
+  reference_features_.descriptors = left.descriptors.clone();
 }
 
 sensors::InstanceMasks MaskPropagator::propagate(const features::FeatureSet& left,

@@ -47,7 +47,8 @@ class MaskPropagator {
   explicit MaskPropagator(const PropagationOptions& options = {});
 
   /// Makes a frame (segmented or propagated) the reference of the next propagation: its masks
-  /// (only cam0 and the classes are used) and its left features, labelled with those masks.
+  /// (only cam0 and the classes are used) and its left features, labelled with those masks
+  /// (copied: no buffer is shared with `left`).
   void setReference(const sensors::InstanceMasks& masks, const features::FeatureSet& left);
   bool hasReference() const { return reference_masks_.has_value(); }
 
