@@ -127,7 +127,6 @@ MonoRun trackMono(const TrackerOptions& options, ManualMappingSink* sink) {
   return run;
 }
 
-/// Smallest gap between consecutive tracked keyframes [s].
 /// Shortest time between consecutive `times` [s]; infinite for fewer than two.
 double minGapSeconds(const std::vector<TimeNs>& times) {
   double gap = std::numeric_limits<double>::infinity();
@@ -136,6 +135,7 @@ double minGapSeconds(const std::vector<TimeNs>& times) {
   return gap;
 }
 
+/// Smallest gap between consecutive tracked keyframes [s].
 double minKeyFrameGapSeconds(const MonoRun& run) {
   std::vector<TimeNs> times;
   for (const MonoKeyFrame& kf : run.keyframes)
