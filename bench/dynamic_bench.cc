@@ -1,11 +1,12 @@
 // Speed of the moving-object test (the paper's Table 12 row "moving objects identifying") on real
-// frames of a simulated sequence with instance masks: three consecutive frames are prepared by the
-// front end (ORB, stereo, class-wise), the test is primed on the first two (tracks, two-frame
-// links) and timed on the last pair, with the ground-truth relative pose as the prediction.
+// frames of a simulated sequence with instance masks: baseline_frames + 1 consecutive frames (the
+// default options') are prepared by the front end (ORB, stereo, class-wise), the test is primed on
+// all but the last (tracks, the chains of the longest baseline) and timed on the last pair, with
+// the ground-truth relative pose as the prediction.
 // Usage: build/bin/superdyna_dynamic_bench [benchmark options]; the sequence is
 // $SUPERDYNA_BENCH_SEQUENCE (a folder holding mav0/, e.g. from `superdyna simulate --dynamic
-// high`), frames $SUPERDYNA_BENCH_FRAME (default 140) - 2 to that one. BM_ProjectionMatching times
-// the frame-to-frame matching of the last two, class-wise or not.
+// high`), the last frame $SUPERDYNA_BENCH_FRAME (default 140). BM_ProjectionMatching times the
+// frame-to-frame matching of the last two, class-wise or not.
 
 #include <benchmark/benchmark.h>
 
@@ -47,8 +48,9 @@ const Frames* loadFrames() {
   io::DatasetSourceOptions options;
   options.inertial = false;
   options.instance_masks = true;
-  options.first_frame = last - 2;
-  options.max_frames = 3;
+  const int frames = dynamic::MovingObjectOptions().baseline_frames + 1;
+  options.first_frame = last - static_cast<std::size_t>(frames - 1);
+  options.max_frames = static_cast<std::size_t>(frames);
   const auto source = io::openDataset(io::DatasetKind::kEuroc, path, options);
   Frames out;
   tracking::FrontEndOptions front;
@@ -83,18 +85,22 @@ void BM_MovingObjectTest(benchmark::State& state) {
   options.mode = dynamic::DynamicMode::kSemanticGeometric;
   options.geometric = state.range(0) != 0;
   dynamic::MovingObjectDetector primed(options, f->camera);
-  const auto v0 = view(f->frames[0]), v1 = view(f->frames[1]), v2 = view(f->frames[2]);
-  primed.detect(nullptr, v0, SE3d());
-  primed.detect(&v0, v1, f->T_w_c[1].inverse() * f->T_w_c[0]);
-  const SE3d T = f->T_w_c[2].inverse() * f->T_w_c[1];
+  const std::size_t last = f->frames.size() - 1;
+  std::vector<dynamic::FrameObservations> views;
+  for (const tracking::Frame& frame : f->frames)
+    views.push_back(view(frame));
+  primed.detect(nullptr, views[0], SE3d());
+  for (std::size_t k = 1; k < last; ++k)
+    primed.detect(&views[k - 1], views[k], f->T_w_c[k].inverse() * f->T_w_c[k - 1]);
+  const SE3d T = f->T_w_c[last].inverse() * f->T_w_c[last - 1];
   int objects = 0;
   for (auto _ : state) {
     dynamic::MovingObjectDetector detector = primed;
-    const dynamic::MovingObjectReport report = detector.detect(&v1, v2, T);
+    const dynamic::MovingObjectReport report = detector.detect(&views[last - 1], views[last], T);
     objects = static_cast<int>(report.objects.size());
     benchmark::DoNotOptimize(report.dropped);
   }
-  state.counters["keypoints"] = static_cast<double>(f->frames[2].size());
+  state.counters["keypoints"] = static_cast<double>(f->frames[last].size());
   state.counters["objects"] = objects;
 }
 BENCHMARK(BM_MovingObjectTest)->Arg(0)->Arg(1)->ArgName("geometric")->Unit(benchmark::kMillisecond);
@@ -108,9 +114,10 @@ void BM_ProjectionMatching(benchmark::State& state) {
     state.SkipWithError("no sequence (SUPERDYNA_BENCH_SEQUENCE)");
     return;
   }
-  const tracking::Frame& previous = f->frames[1];
-  const tracking::Frame& current = f->frames[2];
-  const SE3d T_c2_c1 = f->T_w_c[2].inverse() * f->T_w_c[1];
+  const std::size_t last = f->frames.size() - 1;
+  const tracking::Frame& previous = f->frames[last - 1];
+  const tracking::Frame& current = f->frames[last];
+  const SE3d T_c2_c1 = f->T_w_c[last].inverse() * f->T_w_c[last - 1];
   std::vector<Eigen::Vector2d> predicted(previous.size(), Eigen::Vector2d::Constant(NAN));
   for (std::size_t i = 0; i < previous.size(); ++i) {
     if (!(previous.depth_m[i] > 0.0)) continue;

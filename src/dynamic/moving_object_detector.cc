@@ -19,7 +19,7 @@ namespace superdyna::dynamic {
 
 namespace {
 
-constexpr int kNumTests = 3;
+constexpr int kNumTests = kResidualTestCount;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 int index(ResidualTest test) {
@@ -122,18 +122,14 @@ void MovingObjectOptions::validate() const {
   require(max_hamming >= 0, "max_hamming", "must be >= 0");
   require(max_l2_distance >= 0.0, "max_l2_distance", "must be >= 0");
   require(seed >= 0, "seed", "must be >= 0");
-  require(baseline_frames == 1 || baseline_frames == 2, "baseline_frames", "must be 1 or 2");
+  require(baseline_frames >= 1 && baseline_frames <= kMaxBaselineFrames, "baseline_frames",
+          "must be in [1, 4]");
   require(geometric_cell_px >= 8, "geometric_cell_px", "must be >= 8");
   require(geometric_min_outliers >= 1, "geometric_min_outliers", "must be >= 1");
   require(geometric_outlier_share > 0.0 && geometric_outlier_share <= 1.0,
           "geometric_outlier_share", "must be in (0, 1]");
   require(geometric_threshold_factor >= 1.0, "geometric_threshold_factor", "must be >= 1");
 }
-
-struct MovingObjectDetector::Thresholds {
-  std::array<double, kNumTests> px{};
-  std::array<int, kNumTests> samples{};
-};
 
 MovingObjectDetector::MovingObjectDetector(const MovingObjectOptions& options,
                                            const CameraModel& camera, double pyramid_scale_factor)
@@ -154,8 +150,8 @@ double MovingObjectDetector::linkScale(const Link& link, const FrameObservations
 }
 
 void MovingObjectDetector::reset() {
-  ancestors_.clear();
-  has_ancestors_ = false;
+  chains_.clear();
+  earlier_.clear();
   tracks_.clear();
   track_of_previous_instance_.clear();
 }
@@ -243,12 +239,19 @@ std::vector<MovingObjectDetector::Link> MovingObjectDetector::linksOf(
   return links;
 }
 
-std::vector<MovingObjectDetector::Link> MovingObjectDetector::chainedLinksOf(
-    const std::vector<Pair>& pairs) const {
+int MovingObjectDetector::chainDepth(const Pair& pair) const {
+  const auto k = static_cast<std::size_t>(pair.previous);
+  return k < chains_.size() ? chains_[k].size : 0;
+}
+
+std::vector<MovingObjectDetector::Link> MovingObjectDetector::linksAtDepth(
+    const std::vector<Pair>& pairs, const FrameObservations& previous, int depth) const {
+  if (depth == 0) return linksOf(pairs, previous);
   std::vector<Link> links;
   for (const Pair& pair : pairs) {
-    const auto k = static_cast<std::size_t>(pair.previous);
-    if (k < ancestors_.size() && ancestors_[k]) links.push_back({*ancestors_[k], pair.current});
+    if (chainDepth(pair) < depth) continue;
+    const Chain& chain = chains_[static_cast<std::size_t>(pair.previous)];
+    links.push_back({chain.ends[static_cast<std::size_t>(depth - 1)], pair.current});
   }
   return links;
 }
@@ -344,11 +347,13 @@ std::vector<MovingObjectDetector::Link> MovingObjectDetector::plausibleLinks(
 
 void MovingObjectDetector::testObject(const std::vector<Link>& links,
                                       const FrameObservations& current, const Baseline& baseline,
-                                      std::uint64_t draw_seed, ObjectDecision& decision) const {
+                                      std::uint64_t draw_seed, int max_tested,
+                                      ObjectDecision& decision) const {
   const std::vector<Link> drawn = drawSubset(
       testableLinks(plausibleLinks(links, current, baseline, decision.class_id), current),
-      static_cast<std::size_t>(options_.max_tested_pairs), draw_seed);
-  double worst_excess = -std::numeric_limits<double>::infinity();
+      static_cast<std::size_t>(std::max(0, max_tested)), draw_seed);
+  double worst_excess = decision.tested > 0 ? decision.max_distance_px - decision.threshold_px
+                                            : -std::numeric_limits<double>::infinity();
   for (const Link& link : drawn) {
     const auto tested = linkResidual(link, current, baseline.T_cur_from, baseline.thresholds);
     if (!tested) continue;
@@ -505,7 +510,10 @@ bool MovingObjectDetector::clearlyStatic(const ObjectDecision& decision) const {
 
 void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested_moving) {
   Track& track = tracks_[decision.track_id];
-  if (decision.tested > 0) {
+  // A verified track's state changes only on frames with min_votes tested pairs or more: one pair
+  // can be a mismatch; a new track takes what it has.
+  const int conclusive = track.state == ObjectState::kUnverified ? 1 : options_.min_votes;
+  if (decision.tested >= conclusive) {
     track.moving_run = tested_moving ? track.moving_run + 1 : 0;
     track.static_run = tested_moving ? 0 : track.static_run + 1;
     if (track.state != ObjectState::kStatic && tested_moving) {
@@ -527,8 +535,8 @@ void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested
 
 void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
                                        const FrameObservations& previous,
-                                       const FrameObservations& current, const Baseline& one,
-                                       const std::optional<Baseline>& two,
+                                       const FrameObservations& current,
+                                       const std::vector<Baseline>& baselines,
                                        std::map<int, ObjectDecision>& objects) const {
   const std::uint64_t frame_seed = mixSeed(static_cast<std::uint64_t>(options_.seed), current.t_ns);
   for (auto& [instance, object] : objects) {
@@ -537,31 +545,64 @@ void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& p
     object.pairs = static_cast<int>(found->second.size());
     if (object.pairs < options_.min_pairs) continue;
     const std::uint64_t seed = frame_seed ^ static_cast<std::uint64_t>(instance);
-    if (two) {
-      // The longer baseline doubles a slow mover's displacement; the object's links through the
-      // previous frame are tested when it has enough of them.
-      const std::vector<Link> chained = chainedLinksOf(found->second);
-      if (static_cast<int>(chained.size()) >= options_.min_pairs) {
-        testObject(chained, current, *two, seed, object);
-        continue;
+    // Each pair over the longest baseline its chain gives: a longer one multiplies a slow mover's
+    // displacement. The longest are drawn first, the shorter fill the room left (an object seen
+    // anew in the last frame would otherwise be judged on its one or two long links).
+    for (int depth = static_cast<int>(baselines.size()) - 1; depth >= 0; --depth) {
+      std::vector<Pair> at_depth;
+      for (const Pair& pair : found->second) {
+        if (std::min(chainDepth(pair), static_cast<int>(baselines.size()) - 1) == depth)
+          at_depth.push_back(pair);
       }
+      testObject(linksAtDepth(at_depth, previous, depth), current,
+                 baselines[static_cast<std::size_t>(depth)],
+                 mixSeed(seed, static_cast<TimeNs>(depth)),
+                 options_.max_tested_pairs - object.tested, object);
     }
-    testObject(linksOf(found->second, previous), current, one, seed, object);
   }
 }
 
-void MovingObjectDetector::rememberAncestors(const std::vector<Pair>& pairs,
-                                             const FrameObservations& previous,
-                                             const FrameObservations& current,
-                                             const SE3d& T_cur_prev) {
-  std::vector<std::optional<Endpoint>> next(current.features->size());
-  for (const Pair& pair : pairs) {
-    next[static_cast<std::size_t>(pair.current)] = endpointOf(previous, pair.previous);
+std::vector<MovingObjectDetector::Baseline> MovingObjectDetector::baselinesOf(
+    const std::vector<Pair>& background, const FrameObservations& previous,
+    const FrameObservations& current, const SE3d& T_cur_prev) const {
+  std::vector<Baseline> baselines{
+      {T_cur_prev, backgroundThresholds(linksOf(background, previous), current, T_cur_prev),
+       nsToSeconds(current.t_ns - previous.t_ns)}};
+  for (std::size_t d = 0; d < earlier_.size(); ++d) {
+    const SE3d T_cur_from = T_cur_prev * earlier_[d].T_last_from;
+    const int depth = static_cast<int>(d) + 1;
+    baselines.push_back(
+        {T_cur_from,
+         backgroundThresholds(linksAtDepth(background, previous, depth), current, T_cur_from),
+         nsToSeconds(current.t_ns - earlier_[d].t_ns)});
   }
-  ancestors_ = std::move(next);
-  T_previous_ = T_cur_prev;
-  ancestors_t_ns_ = previous.t_ns;
-  has_ancestors_ = true;
+  return baselines;
+}
+
+void MovingObjectDetector::rememberChains(const std::vector<Pair>& pairs,
+                                          const FrameObservations& previous,
+                                          const FrameObservations& current,
+                                          const SE3d& T_cur_prev) {
+  const int longest = options_.baseline_frames - 1;
+  if (longest == 0) return;  // the last frame only: nothing to chain
+  std::vector<Chain> next(current.features->size());
+  for (const Pair& pair : pairs) {
+    Chain& chain = next[static_cast<std::size_t>(pair.current)];
+    chain.ends[0] = endpointOf(previous, pair.previous);
+    chain.size = 1;
+    const auto k = static_cast<std::size_t>(pair.previous);
+    if (k >= chains_.size()) continue;
+    for (int d = 0; d < chains_[k].size && chain.size < longest; ++d) {
+      chain.ends[static_cast<std::size_t>(chain.size++)] =
+          chains_[k].ends[static_cast<std::size_t>(d)];
+    }
+  }
+  std::vector<EarlierFrame> earlier{{previous.t_ns, T_cur_prev}};
+  for (std::size_t d = 0; d < earlier_.size() && static_cast<int>(earlier.size()) < longest; ++d) {
+    earlier.push_back({earlier_[d].t_ns, T_cur_prev * earlier_[d].T_last_from});
+  }
+  chains_ = std::move(next);
+  earlier_ = std::move(earlier);
 }
 
 void MovingObjectDetector::dropKeypoints(const std::map<int, ObjectDecision>& objects,
@@ -618,12 +659,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
                        ? refinedMotion(background, *previous, current, T_cur_prev)
                        : T_cur_prev;
     T_motion = T;
-    const Thresholds thresholds = backgroundThresholds(linksOf(background, *previous), current, T);
-    // Two frames back: the background's links through the previous frame, and the motion since.
-    const bool two_step = options_.baseline_frames == 2 && has_ancestors_;
-    const SE3d T2 = T * T_previous_;
-    const Thresholds thresholds2 =
-        two_step ? backgroundThresholds(chainedLinksOf(background), current, T2) : thresholds;
+    const std::vector<Baseline> baselines = baselinesOf(background, *previous, current, T);
     if (options_.geometric) {
       // Background features that left the narrow search radius (fast unlabelled movers) are
       // searched again as widely as objects; only the cell test sees those pairs.
@@ -631,7 +667,8 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
       for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, false, true, background)) {
         all.push_back(pair);
       }
-      moving_cells = movingBackgroundCells(linksOf(all, *previous), current, T, thresholds, report);
+      moving_cells = movingBackgroundCells(linksOf(all, *previous), current, T,
+                                           baselines.front().thresholds, report);
     }
     std::vector<Pair> all_pairs = background;
     if (test_objects) {
@@ -639,15 +676,12 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
         pairs_of[keypoints[pair.current].instance_id].push_back(pair);
         all_pairs.push_back(pair);
       }
-      const Baseline one{T, thresholds, nsToSeconds(current.t_ns - previous->t_ns)};
-      const Baseline two{T2, thresholds2, nsToSeconds(current.t_ns - ancestors_t_ns_)};
-      testObjects(pairs_of, *previous, current, one,
-                  two_step ? std::optional<Baseline>(two) : std::nullopt, objects);
+      testObjects(pairs_of, *previous, current, baselines, objects);
     }
-    rememberAncestors(all_pairs, *previous, current, T);
+    rememberChains(all_pairs, *previous, current, T);
   } else {
-    ancestors_.clear();
-    has_ancestors_ = false;
+    chains_.clear();
+    earlier_.clear();
   }
 
   std::vector<int> instances;

@@ -23,6 +23,7 @@
 namespace superdyna::dynamic {
 
 enum class ResidualTest { kEpipolar, kReprojection, kRotationTransfer };
+inline constexpr int kResidualTestCount = 3;
 const char* toString(ResidualTest test);
 
 /// Distance [px] of x_cur to the epipolar line of x_prev (normalised coordinates) under

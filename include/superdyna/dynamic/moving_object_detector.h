@@ -19,7 +19,11 @@
 //    mismatches and unlabelled movers. Too few background pairs: fallback_threshold_px.
 // 4. Objects. The pairs of each current instance are grouped; objects with fewer than min_pairs
 //    are unverified this frame. Otherwise up to max_tested_pairs pairs are drawn (seeded, so that
-//    deterministic runs stay bit-identical) and tested: reprojection where the previous keypoint
+//    deterministic runs stay bit-identical) and tested, each over the longest baseline it has (up
+//    to baseline_frames): a pair whose previous keypoint continues pairs of the frames before is
+//    tested from the earliest of them, with the chained refined motion and thresholds from the
+//    background's links over the same frames. The longest links are drawn first, shorter ones
+//    fill the room left. Test: reprojection where the earlier keypoint
 //    has stereo depth (stereo_reprojection), else epipolar, or rotation transfer when the
 //    predicted translation is below min_translation_m. The object moves in this frame when at
 //    least max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
@@ -37,7 +41,9 @@
 //    new track takes its first frame's verdict; a static track turns moving after
 //    moving_confirmations moving frames in a row, a moving one static after static_confirmations
 //    static frames in a row, or at once after a frame in which clear_static_pairs or more pairs
-//    were tested and none exceeded its threshold; unverified frames keep the state. Keypoints of
+//    were tested and none exceeded its threshold; unverified frames, and for a verified track
+//    frames with fewer than min_votes tested pairs (one pair may be a mismatch), keep the state.
+//    Keypoints of
 //    moving tracks are dropped, those of never-verified ones too when drop_unverified.
 //
 // mode kSemantic drops every movable keypoint (DynaSLAM-style) without testing; kOff drops none.
@@ -48,6 +54,7 @@
 // geometric_min_outliers pairs, and geometric_outlier_share of the cell's pairs, exceed
 // geometric_threshold_factor times their threshold is dropped.
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -66,6 +73,8 @@ enum class DynamicMode { kOff, kSemantic, kSemanticGeometric };
 /// "off" | "semantic" | "semantic-geometric"; OptionError naming `option` otherwise.
 DynamicMode parseDynamicMode(const std::string& name, const std::string& option);
 std::string toString(DynamicMode mode);
+
+inline constexpr int kMaxBaselineFrames = 4;
 
 struct MovingObjectOptions {
   DynamicMode mode = DynamicMode::kOff;
@@ -106,9 +115,10 @@ struct MovingObjectOptions {
   int max_hamming = 64;          ///< Largest accepted Hamming distance [bits], >= 0.
   double max_l2_distance = 1.0;  ///< Largest accepted float distance, >= 0.
   int seed = 1;  ///< Seeds the draw of tested pairs (mixed with the frame time), >= 0.
-  /// 2: objects are tested over two frames where their pairs continue a pair of the last frame
-  /// (twice a slow mover's displacement); 1: the last frame only (the paper).
-  int baseline_frames = 2;
+  /// Up to how many frames back a pair is tested, in [1, kMaxBaselineFrames]: a pair that
+  /// continues pairs of the frames before is tested from the earliest of them (n frames multiply
+  /// a slow mover's displacement by n); 1: the last frame only (the paper).
+  int baseline_frames = 3;
   /// The geometric test of background features, on top of any mode (see the file comment).
   bool geometric = false;
   int geometric_cell_px = 48;            ///< Image cells the outliers are grouped in [px], >= 8.
@@ -189,7 +199,12 @@ class MovingObjectDetector {
     int previous = 0;
     int current = 0;
   };
-  struct Thresholds;
+  /// Per residual test: its threshold [px, before the pair's scale] and the background residuals
+  /// it came from.
+  struct Thresholds {
+    std::array<double, kResidualTestCount> px{};
+    std::array<int, kResidualTestCount> samples{};
+  };
   /// A keypoint of an earlier frame, as far as the tests need it.
   struct Endpoint {
     Eigen::Vector2d x = Eigen::Vector2d::Zero();  ///< Normalised coordinates.
@@ -206,16 +221,27 @@ class MovingObjectDetector {
   /// The motion from an earlier frame and the thresholds of its tests.
   struct Baseline {
     SE3d T_cur_from;
-    const Thresholds& thresholds;
+    Thresholds thresholds;
     double dt_s = 0.0;  ///< Time between the two frames (<= 0: unknown).
   };
   Endpoint endpointOf(const FrameObservations& frame, int i) const;
   std::vector<Link> linksOf(const std::vector<Pair>& pairs,
                             const FrameObservations& previous) const;
-  /// The pairs' previous keypoints' own partners two frames back (those that had one).
-  std::vector<Link> chainedLinksOf(const std::vector<Pair>& pairs) const;
-  void rememberAncestors(const std::vector<Pair>& pairs, const FrameObservations& previous,
-                         const FrameObservations& current, const SE3d& T_cur_prev);
+  /// How many frames before the last one a pair's previous keypoint is chained back.
+  int chainDepth(const Pair& pair) const;
+  /// The pairs as links from `depth` frames before the last one (0: from the last frame; deeper:
+  /// from the chained keypoints of the pairs whose chain reaches that far).
+  std::vector<Link> linksAtDepth(const std::vector<Pair>& pairs, const FrameObservations& previous,
+                                 int depth) const;
+  /// Per depth (0: the last frame, d: d frames before it, while chains reach), the motion to the
+  /// current frame and the thresholds of the background's links over it.
+  std::vector<Baseline> baselinesOf(const std::vector<Pair>& background,
+                                    const FrameObservations& previous,
+                                    const FrameObservations& current, const SE3d& T_cur_prev) const;
+  /// Chains the current keypoints of `pairs` back through their previous keypoints (up to
+  /// baseline_frames - 1 frames) for the next frame.
+  void rememberChains(const std::vector<Pair>& pairs, const FrameObservations& previous,
+                      const FrameObservations& current, const SE3d& T_cur_prev);
 
   /// The position uncertainty of a link relative to level 0: scale_factor^octave of its coarser
   /// keypoint.
@@ -243,7 +269,7 @@ class MovingObjectDetector {
                                                         const Thresholds& thresholds) const;
   void testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
                    const FrameObservations& previous, const FrameObservations& current,
-                   const Baseline& one, const std::optional<Baseline>& two,
+                   const std::vector<Baseline>& baselines,
                    std::map<int, ObjectDecision>& objects) const;
   /// Per image cell (row-major, geometric_cell_px): whether its background pairs move.
   std::vector<char> movingBackgroundCells(const std::vector<Link>& background,
@@ -266,8 +292,10 @@ class MovingObjectDetector {
   /// (max_pedestrian_speed_mps, max_vehicle_speed_mps): mismatches of the wide search.
   std::vector<Link> plausibleLinks(const std::vector<Link>& links, const FrameObservations& current,
                                    const Baseline& baseline, int class_id) const;
+  /// Draws up to `max_tested` of the links (testable and plausible) and adds their tests to
+  /// `decision`.
   void testObject(const std::vector<Link>& links, const FrameObservations& current,
-                  const Baseline& baseline, std::uint64_t draw_seed,
+                  const Baseline& baseline, std::uint64_t draw_seed, int max_tested,
                   ObjectDecision& decision) const;
   /// The track of every current instance (`instances`) from its pairs' previous instances;
   /// objects without pairs to a tracked object by overlap (inheritTracksByOverlap).
@@ -295,11 +323,18 @@ class MovingObjectDetector {
   double focal_px_ = 1.0;
   double pyramid_scale_factor_ = 1.2;
   std::map<int, Track> tracks_;
-  /// Per keypoint of the last frame: its partner in the frame before (baseline_frames 2).
-  std::vector<std::optional<Endpoint>> ancestors_;
-  SE3d T_previous_;            ///< The refined motion of the last frame from the one before.
-  TimeNs ancestors_t_ns_ = 0;  ///< Time of the frame the ancestors were seen in.
-  bool has_ancestors_ = false;
+  /// A keypoint's partners in the frames before it, newest first.
+  struct Chain {
+    std::array<Endpoint, kMaxBaselineFrames - 1> ends;
+    int size = 0;
+  };
+  /// A frame before the last one.
+  struct EarlierFrame {
+    TimeNs t_ns = 0;
+    SE3d T_last_from;  ///< The refined motion from it to the last frame.
+  };
+  std::vector<Chain> chains_;          ///< Per keypoint of the last frame.
+  std::vector<EarlierFrame> earlier_;  ///< [d]: d + 1 frames before the last one.
   std::map<int, int> track_of_previous_instance_;
   int next_track_ = 0;
 };
