@@ -678,6 +678,13 @@ TEST(MovingObjectDetectorTest, OptionsAreCheckedByName) {
   } catch (const OptionError& e) {
     EXPECT_NE(std::string(e.what()).find("dynamic.moving_vote_share"), std::string::npos);
   }
+  MovingObjectOptions baseline;
+  baseline.baseline_frames = kMaxBaselineFrames;
+  EXPECT_NO_THROW(baseline.validate());
+  baseline.baseline_frames = kMaxBaselineFrames + 1;
+  EXPECT_THROW(baseline.validate(), OptionError);
+  baseline.baseline_frames = 0;
+  EXPECT_THROW(baseline.validate(), OptionError);
   EXPECT_THROW(parseDynamicMode("semantic+geometric", "--dynamic"), OptionError);
   EXPECT_EQ(parseDynamicMode("semantic-geometric", "--dynamic"), DynamicMode::kSemanticGeometric);
 }
