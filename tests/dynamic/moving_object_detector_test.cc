@@ -404,6 +404,8 @@ TEST(MovingObjectDetectorTest, TwoFrameBaselineSeesASlowMover) {
 
 TEST(MovingObjectDetectorTest, LongerBaselinesSeeASlowerMover) {
   // 0.8 cm per frame (0.16 m/s): about 0.3 px a frame, 0.6 px over two frames, 1.3 px over four.
+  // Four-frame chains reach back to frame 0 from frame 4 on, and the car's static track then
+  // needs two moving frames: 3 of frames 2-7 is all a four-frame baseline can give.
   const int two = slowCarMovingFrames(2, 0.008), four = slowCarMovingFrames(4, 0.008);
   std::cout << "slower car called moving in " << two << " / " << four
             << " of 6 frames (two- / four-frame baseline)\n";
