@@ -23,10 +23,10 @@
 //    to baseline_frames): a pair whose previous keypoint continues pairs of the frames before is
 //    tested from the earliest of them, with the chained refined motion and thresholds from the
 //    background's links over the same frames. The longest links are drawn first, shorter ones
-//    fill the room left. Test: reprojection where the earlier keypoint
-//    has stereo depth (stereo_reprojection), else epipolar, or rotation transfer when the
-//    predicted translation is below min_translation_m. The object moves in this frame when at
-//    least max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
+//    fill the room left. Test: reprojection where the earlier keypoint has stereo depth
+//    (stereo_reprojection), else epipolar, or rotation transfer when the predicted translation
+//    is below min_translation_m. The object moves in this frame when at least
+//    max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
 //    threshold of their test (the paper: any one pair). With skip_border_pairs, pairs with a
 //    keypoint on the object's mask border (features::Keypoint::on_instance_border) are left out
 //    when the object has others: such a corner is formed with the background behind the
@@ -43,8 +43,8 @@
 //    static frames in a row, or at once after a frame in which clear_static_pairs or more pairs
 //    were tested and none exceeded its threshold; unverified frames, and for a verified track
 //    frames with fewer than min_votes tested pairs (one pair may be a mismatch), keep the state.
-//    Keypoints of
-//    moving tracks are dropped, those of never-verified ones too when drop_unverified.
+//    Keypoints of moving tracks are dropped, those of never-verified ones too when
+//    drop_unverified.
 //
 // mode kSemantic drops every movable keypoint (DynaSLAM-style) without testing; kOff drops none.
 //
