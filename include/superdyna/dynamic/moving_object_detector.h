@@ -85,7 +85,7 @@ struct MovingObjectOptions {
   double min_threshold_px = 1.0;       ///< Lower bound of a threshold [px], > 0.
   double fallback_threshold_px = 3.0;  ///< Threshold without enough background pairs [px], > 0.
   int min_background_pairs = 20;       ///< Background pairs a test's threshold needs, >= 1.
-  double moving_vote_share = 0.4;      ///< Share of tested pairs beyond the threshold, (0, 1].
+  double moving_vote_share = 0.35;     ///< Share of tested pairs beyond the threshold, (0, 1].
   int min_votes = 2;                   ///< ... and at least this many (capped by tested), >= 1.
   double min_translation_m = 0.01;     ///< Below: rotation transfer instead of epipolar, >= 0.
   bool stereo_reprojection = true;     ///< Test pairs with previous stereo depth by reprojection.
@@ -118,7 +118,7 @@ struct MovingObjectOptions {
   /// Up to how many frames back a pair is tested, in [1, kMaxBaselineFrames]: a pair that
   /// continues pairs of the frames before is tested from the earliest of them (n frames multiply
   /// a slow mover's displacement by n); 1: the last frame only (the paper).
-  int baseline_frames = 3;
+  int baseline_frames = 2;
   /// The geometric test of background features, on top of any mode (see the file comment).
   bool geometric = false;
   int geometric_cell_px = 48;            ///< Image cells the outliers are grouped in [px], >= 8.
