@@ -39,6 +39,29 @@ std::optional<double> epipolarDistancePx(const Eigen::Vector2d& x_prev,
   return focal_px * std::abs(line.dot(x_cur.homogeneous())) / norm;
 }
 
+std::optional<double> epipolarRayDistancePx(const Eigen::Vector2d& x_prev,
+                                            const Eigen::Vector2d& x_cur, const SE3d& T_cur_prev,
+                                            double focal_px) {
+  const std::optional<double> line_distance =
+      epipolarDistancePx(x_prev, x_cur, T_cur_prev, focal_px);
+  if (!line_distance) return std::nullopt;
+  // A static point at depth d along the previous ray is seen at d a + t (up to scale).
+  const Eigen::Vector3d a = T_cur_prev.q * x_prev.homogeneous();
+  const Eigen::Vector3d& t = T_cur_prev.t;
+  const Eigen::Vector3d x = x_cur.homogeneous();
+  const Eigen::Vector3d x_cross_a = x.cross(a);
+  const double denominator = x_cross_a.squaredNorm();
+  // At the point at infinite depth, or that point behind the camera: the line test alone.
+  if (!(a.z() > 1e-9) || !(denominator > 1e-18)) return line_distance;
+  // Least-squares depth of x ~ d a + t: d (x x a) = -(x x t).
+  const double depth = -x.cross(t).dot(x_cross_a) / denominator;
+  if (depth > 0.0 && (depth * a + t).z() > 0.0) return line_distance;
+  double beyond = (x_cur - a.head<2>() / a.z()).norm();
+  // Moving backward, the reachable part ends at the epipole (depth 0) on the other side.
+  if (t.z() > 1e-12) beyond = std::min(beyond, (x_cur - t.head<2>() / t.z()).norm());
+  return std::max(*line_distance, focal_px * beyond);
+}
+
 std::optional<double> reprojectionDistancePx(const Eigen::Vector3d& p_prev,
                                              const Eigen::Vector2d& x_cur, const SE3d& T_cur_prev,
                                              double focal_px) {

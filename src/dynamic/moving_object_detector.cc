@@ -271,7 +271,7 @@ MovingObjectDetector::Thresholds MovingObjectDetector::backgroundThresholds(
       if (residual) residuals[index(test)].push_back(*residual / scale);
     };
     if (translating) {
-      push(ResidualTest::kEpipolar, epipolarDistancePx(x_from, x_cur, T_cur_from, focal_px_));
+      push(ResidualTest::kEpipolar, epipolarRayDistancePx(x_from, x_cur, T_cur_from, focal_px_));
     } else {
       push(ResidualTest::kRotationTransfer,
            rotationTransferDistancePx(x_from, x_cur, T_cur_from, focal_px_));
@@ -304,7 +304,7 @@ std::optional<std::pair<double, double>> MovingObjectDetector::linkResidual(
     test = ResidualTest::kReprojection;
     residual = reprojectionDistancePx(link.from.p, x_cur, T_cur_from, focal_px_);
   } else if (translating) {
-    residual = epipolarDistancePx(link.from.x, x_cur, T_cur_from, focal_px_);
+    residual = epipolarRayDistancePx(link.from.x, x_cur, T_cur_from, focal_px_);
   } else {
     residual = rotationTransferDistancePx(link.from.x, x_cur, T_cur_from, focal_px_);
   }

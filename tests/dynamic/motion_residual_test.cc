@@ -48,6 +48,42 @@ TEST(MotionResidualTest, MotionAlongTheEpipolarLineIsSeenOnlyByReprojection) {
   EXPECT_GT(*reprojectionDistancePx(p_prev, x_cur, T, kFocal), 15.0);
 }
 
+TEST(MotionResidualTest, TheRayTestSeesMotionAlongTheLineAgainstAStaticPointsFlow) {
+  // The camera moves 0.5 m to its right: a static point's image moves left. A car beside it
+  // driving 1.2 m to the right in the same time stays on its epipolar line but its image moves
+  // right, which no depth in front of the camera explains.
+  const SE3d T = curFromPrev();
+  const Eigen::Vector3d p_prev(1.0, -0.5, 8.0);
+  const Eigen::Vector2d x_prev = normalizedOf(p_prev);
+  const Eigen::Vector2d x_overtaking = normalizedOf(T * (p_prev + Eigen::Vector3d(1.2, 0, 0)));
+  EXPECT_LT(*epipolarDistancePx(x_prev, x_overtaking, T, kFocal), 1e-6);
+  // Beyond the point at infinite depth by the car's extra 0.7 m at 8 m: about 35 px.
+  EXPECT_NEAR(*epipolarRayDistancePx(x_prev, x_overtaking, T, kFocal), 35.0, 2.0);
+  // Slower than the camera (0.4 m), its image moves left like a farther static point's: unseen.
+  const Eigen::Vector2d x_slower = normalizedOf(T * (p_prev + Eigen::Vector3d(0.4, 0, 0)));
+  EXPECT_LT(*epipolarRayDistancePx(x_prev, x_slower, T, kFocal), 1e-6);
+  // Static points at any depth are on the reachable part; off the line it is the line distance.
+  for (const double depth : {0.5, 3.0, 40.0, 1e4}) {
+    const Eigen::Vector3d p = p_prev.normalized() * depth;
+    EXPECT_LT(*epipolarRayDistancePx(normalizedOf(p), normalizedOf(T * p), T, kFocal), 1e-6);
+  }
+  const Eigen::Vector2d x_below = normalizedOf(T * (p_prev + Eigen::Vector3d(0, 0.1, 0)));
+  EXPECT_NEAR(*epipolarRayDistancePx(x_prev, x_below, T, kFocal),
+              *epipolarDistancePx(x_prev, x_below, T, kFocal), 1e-9);
+}
+
+TEST(MotionResidualTest, TheRayTestSeesAPointApproachingFasterThanTheCameraMovesBackward) {
+  // Moving backward 0.5 m, a static point's image moves toward the epipole (depth 0) and stops
+  // there; a point that crosses it came closer than the camera went.
+  const SE3d T(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.5));
+  const Eigen::Vector3d p_prev(1.0, 0.0, 4.0);
+  const Eigen::Vector2d x_prev = normalizedOf(p_prev);
+  const Eigen::Vector2d x_static = normalizedOf(T * p_prev);
+  EXPECT_LT(*epipolarRayDistancePx(x_prev, x_static, T, kFocal), 1e-9);
+  // Beyond the epipole (the image centre) by 0.1 in normalised units: 40 px from its nearer end.
+  EXPECT_NEAR(*epipolarRayDistancePx(x_prev, Eigen::Vector2d(-0.1, 0.0), T, kFocal), 40.0, 1e-6);
+}
+
 TEST(MotionResidualTest, RotationTransferIsExactForPureRotation) {
   const SE3d T(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX())),
                Eigen::Vector3d::Zero());

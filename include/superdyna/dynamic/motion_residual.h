@@ -8,7 +8,9 @@
 //
 // - Epipolar: distance of the current point to the epipolar line E x_prev (E = [t]x R of
 //   T_cur_prev). Blind to motion along the epipolar line (a car driving parallel to the camera's
-//   translation) and meaningless when the translation is near zero (E -> 0).
+//   translation) and meaningless when the translation is near zero (E -> 0). The ray variant
+//   also measures how far the point is beyond the line's reachable part (positive depth), which
+//   sees such motion when it runs against a static point's flow.
 // - Reprojection (stereo): the previous frame's stereo point moved by T_cur_prev and projected;
 //   sees motion in every image direction, at the cost of stereo depth noise (which grows with
 //   depth squared; the background threshold of the same test absorbs it).
@@ -32,6 +34,17 @@ const char* toString(ResidualTest test);
 std::optional<double> epipolarDistancePx(const Eigen::Vector2d& x_prev,
                                          const Eigen::Vector2d& x_cur, const SE3d& T_cur_prev,
                                          double focal_px);
+
+/// Distance [px] of x_cur to the part of x_prev's epipolar line that a static point in front of
+/// both cameras can reach: the image of depths (0, inf) of x_prev's ray, a half-line from the
+/// point at infinite depth (the rotated bearing) away from the epipole when the camera moves
+/// forward. On that part it is the epipolar distance; off it, the distance to the part's nearer
+/// end. Sees the half of the motion along the epipolar line that runs against a static point's
+/// flow (a car overtaking the camera, a person walking against it), which no static depth
+/// explains. nullopt when epipolarDistancePx is.
+std::optional<double> epipolarRayDistancePx(const Eigen::Vector2d& x_prev,
+                                            const Eigen::Vector2d& x_cur, const SE3d& T_cur_prev,
+                                            double focal_px);
 
 /// Distance [px] between x_cur and the projection of the previous frame's point p_prev (in the
 /// previous camera frame [m]) moved by T_cur_prev; nullopt when it lands behind the camera.

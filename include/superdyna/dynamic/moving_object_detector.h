@@ -24,8 +24,9 @@
 //    tested from the earliest of them, with the chained refined motion and thresholds from the
 //    background's links over the same frames. The longest links are drawn first, shorter ones
 //    fill the room left. Test: reprojection where the earlier keypoint has stereo depth
-//    (stereo_reprojection), else epipolar, or rotation transfer when the predicted translation
-//    is below min_translation_m. The object moves in this frame when at least
+//    (stereo_reprojection), else epipolar (the distance to the part of the line a static point
+//    at positive depth can reach, motion_residual.h), or rotation transfer when the predicted
+//    translation is below min_translation_m. The object moves in this frame when at least
 //    max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
 //    threshold of their test (the paper: any one pair). With skip_border_pairs, pairs with a
 //    keypoint on the object's mask border (features::Keypoint::on_instance_border) are left out
