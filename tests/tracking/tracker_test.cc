@@ -249,11 +249,10 @@ TEST(MonoTracker, MonoInertialWeakTrackingTakesAKeyFrameBeforeTheMinimumInterval
 }
 
 /// The first 1.5 s of the street sequence of issue 18 (street77: EuRoC V2_02 from 5 s, seed 77).
-const std::filesystem::path& streetV202Sequence() {
+const std::filesystem::path& streetV202Sequence(const std::filesystem::path& v202_trajectory) {
   sim::SimulationOptions options =
       test::flightOptions(1.5, sim::SceneType::kStreet, sim::DynamicLevel::kNone, 77);
-  options.motion.trajectory_file =
-      test::sharedDir() / "data" / "trajectories" / "euroc" / "V2_02_medium.txt";
+  options.motion.trajectory_file = v202_trajectory;
   options.motion.start_s = 5.0;
   return test::generatedSequence("tracker_test_street_v202", options);
 }
@@ -265,12 +264,12 @@ struct TwoViewOutcome {
   int frame = -1;
 };
 
-TwoViewOutcome monoInertialTwoView() {
+TwoViewOutcome monoInertialTwoView(const std::filesystem::path& v202_trajectory) {
   io::DatasetSourceOptions source_options;
   source_options.stereo = false;
   source_options.inertial = true;
   const auto source =
-      io::openDataset(io::DatasetKind::kEuroc, streetV202Sequence(), source_options);
+      io::openDataset(io::DatasetKind::kEuroc, streetV202Sequence(v202_trajectory), source_options);
   FrontEnd front_end(FrontEndOptions{}, source->camera0(), std::nullopt);
   mapping::LocalMapperOptions mapping;
   mapping.triangulate = true;
@@ -302,7 +301,8 @@ TEST(MonoTracker, MonoInertialTwoViewMapAgreesWithTheTruthOnTheStreet) {
   // One frame after the reference the homography explained the street's flow with a rotation
   // 1.7 deg off: the bent map lost track at the inertial initialisation (issue 18, item 10).
   // The gyroscope now refuses it and a later frame (more parallax) builds the map.
-  const TwoViewOutcome outcome = monoInertialTwoView();
+  SUPERDYNA_REQUIRE_SHARED(v202, "data/trajectories/euroc/V2_02_medium.txt");
+  const TwoViewOutcome outcome = monoInertialTwoView(v202);
   std::cout << "street two-view map at frame " << outcome.frame << ": rotation error "
             << outcome.rotation_error_deg << " deg\n";
   ASSERT_GE(outcome.frame, 0);
