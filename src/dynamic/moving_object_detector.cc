@@ -122,10 +122,8 @@ void MovingObjectOptions::validate() const {
   require(max_hamming >= 0, "max_hamming", "must be >= 0");
   require(max_l2_distance >= 0.0, "max_l2_distance", "must be >= 0");
   require(seed >= 0, "seed", "must be >= 0");
-  if (baseline_frames < 1 || baseline_frames > kMaxBaselineFrames) {
-    throw OptionError("dynamic.baseline_frames",
-                      fmt::format("must be in [1, {}]", kMaxBaselineFrames));
-  }
+  require(baseline_frames >= 1 && baseline_frames <= kMaxBaselineFrames, "baseline_frames",
+          fmt::format("must be in [1, {}]", kMaxBaselineFrames).c_str());
   require(geometric_cell_px >= 8, "geometric_cell_px", "must be >= 8");
   require(geometric_min_outliers >= 1, "geometric_min_outliers", "must be >= 1");
   require(geometric_outlier_share > 0.0 && geometric_outlier_share <= 1.0,
