@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "superdyna/core/error.h"
+#include "superdyna/features/fast_windows.h"
 #include "superdyna/features/orb_descriptor.h"
 #include "superdyna/features/quadtree.h"
 
@@ -44,17 +45,25 @@ std::vector<int> levelBudgets(int features, double scale_factor, int levels) {
   return targets;
 }
 
-/// FAST corners in one cell, with the lower threshold when the first finds none.
-void detectInCell(const cv::Mat& level, const cv::Rect& cell, int threshold, int min_threshold,
-                  std::vector<cv::KeyPoint>& corners) {
-  std::vector<cv::KeyPoint> found;
-  cv::FAST(level(cell), found, threshold, true);
-  if (found.empty() && min_threshold < threshold) cv::FAST(level(cell), found, min_threshold, true);
-  for (cv::KeyPoint& kp : found) {
-    kp.pt.x += static_cast<float>(cell.x);
-    kp.pt.y += static_cast<float>(cell.y);
-    corners.push_back(kp);
+/// ORB-SLAM's FAST cells over `area` (the level minus edge_threshold - 3 px on each side): about
+/// cell_size px, each widened by 3 px on every side so that the cells' corner areas (3 px inside
+/// a cell) tile [edge, size - edge) without overlap; neighbouring cells overlap by 6 px.
+std::vector<cv::Rect> detectionCells(const cv::Rect& area, int cell_size) {
+  const int cols = std::max(1, area.width / cell_size);
+  const int rows = std::max(1, area.height / cell_size);
+  const int cell_w = (area.width + cols - 1) / cols, cell_h = (area.height + rows - 1) / rows;
+  std::vector<cv::Rect> cells;
+  for (int r = 0; r < rows; ++r) {
+    const int y0 = area.y + r * cell_h;
+    const int y1 = std::min(y0 + cell_h + 2 * kFastRadius, area.y + area.height);
+    if (y1 - y0 <= 2 * kFastRadius) continue;
+    for (int c = 0; c < cols; ++c) {
+      const int x0 = area.x + c * cell_w;
+      const int x1 = std::min(x0 + cell_w + 2 * kFastRadius, area.x + area.width);
+      if (x1 - x0 > 2 * kFastRadius) cells.emplace_back(x0, y0, x1 - x0, y1 - y0);
+    }
   }
+  return cells;
 }
 
 }  // namespace
@@ -89,25 +98,27 @@ void OrbExtractor::buildPyramid(const cv::Mat& gray) {
 }
 
 std::vector<cv::KeyPoint> OrbExtractor::detectCorners(const cv::Mat& level) const {
-  // Cells cover [edge - 3, size - edge + 3), so that corners (3 px inside a cell) land in
-  // [edge, size - edge); neighbouring cells overlap by 6 px and their corner areas do not.
   const int lo = options_.edge_threshold - kFastRadius;
-  const int width = level.cols - 2 * lo, height = level.rows - 2 * lo;
+  const cv::Rect area(lo, lo, level.cols - 2 * lo, level.rows - 2 * lo);
   std::vector<cv::KeyPoint> corners;
-  if (width <= 2 * kFastRadius || height <= 2 * kFastRadius) return corners;
-  const int cols = std::max(1, width / options_.cell_size);
-  const int rows = std::max(1, height / options_.cell_size);
-  const int cell_w = (width + cols - 1) / cols, cell_h = (height + rows - 1) / rows;
-  for (int r = 0; r < rows; ++r) {
-    const int y0 = lo + r * cell_h;
-    const int y1 = std::min(y0 + cell_h + 2 * kFastRadius, lo + height);
-    if (y1 - y0 <= 2 * kFastRadius) continue;
-    for (int c = 0; c < cols; ++c) {
-      const int x0 = lo + c * cell_w;
-      const int x1 = std::min(x0 + cell_w + 2 * kFastRadius, lo + width);
-      if (x1 - x0 <= 2 * kFastRadius) continue;
-      detectInCell(level, cv::Rect(x0, y0, x1 - x0, y1 - y0), options_.fast_threshold,
-                   options_.min_fast_threshold, corners);
+  if (area.width <= 2 * kFastRadius || area.height <= 2 * kFastRadius) return corners;
+  // Per cell, cv::FAST(level(cell), ..., threshold, true), read from one detection over the
+  // level (fast_windows.h); a cell without corners again with the lower threshold, by cv::FAST
+  // on the cell (one detection over the level at that threshold finds so many candidates in
+  // textured parts that it costs more).
+  const FastWindows strong(level, area, options_.fast_threshold);
+  for (const cv::Rect& cell : detectionCells(area, options_.cell_size)) {
+    const std::size_t before = corners.size();
+    strong.detect(cell, corners);
+    if (corners.size() > before || options_.min_fast_threshold >= options_.fast_threshold) {
+      continue;
+    }
+    std::vector<cv::KeyPoint> weak;
+    cv::FAST(level(cell), weak, options_.min_fast_threshold, true);
+    for (cv::KeyPoint& kp : weak) {
+      kp.pt.x += static_cast<float>(cell.x);
+      kp.pt.y += static_cast<float>(cell.y);
+      corners.push_back(kp);
     }
   }
   return corners;
