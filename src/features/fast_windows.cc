@@ -118,6 +118,9 @@ int FastWindows::scoreOf(int x, int y) const {
 }
 
 void FastWindows::detect(const cv::Rect& window, std::vector<cv::KeyPoint>& corners) const {
+  if ((window & region_) != window) {
+    throw InputError("FastWindows: a window outside the region the corners were found in");
+  }
   // The window's detection area in region coordinates; outside it every score counts as 0.
   const int x0 = window.x - region_.x + kRadius;
   const int x1 = window.x - region_.x + window.width - kRadius;

@@ -140,10 +140,13 @@ TEST(FastWindowsTest, WindowsFindWhatCvFastFindsOnARealImage) {
   }
 }
 
-TEST(FastWindowsTest, RejectsARegionOutsideTheImage) {
+TEST(FastWindowsTest, RejectsARegionOutsideTheImageAndAWindowOutsideTheRegion) {
   const cv::Mat image = noiseImage(40, 30, 1);
   EXPECT_THROW(FastWindows(image, cv::Rect(10, 10, 40, 10), 20), InputError);
   EXPECT_THROW(FastWindows(image, cv::Rect(0, 0, 40, 30), 0), InputError);
+  const FastWindows windows(image, cv::Rect(5, 5, 30, 20), 20);
+  std::vector<cv::KeyPoint> corners;
+  EXPECT_THROW(windows.detect(cv::Rect(0, 0, 20, 20), corners), InputError);
 }
 
 }  // namespace

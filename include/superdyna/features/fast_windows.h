@@ -3,9 +3,10 @@
 // suppression finds them in each window, from one detection over the whole region.
 //
 // ORB-SLAM's extractor runs FAST on a grid of small overlapping cells (about 36x36 px). Called
-// per cell, cv::FAST spends most of its time outside its vector loop (rows shorter than two
-// vector widths) and detects the 6 px overlaps twice. Here cv::FAST runs once over the region
-// without suppression; each candidate is scored once with FAST's corner score (the largest
+// per cell, cv::FAST spends much of its time in its scalar loop (a 36 px row leaves little to its
+// vector loop) and detects the 6 px overlaps twice. Here cv::FAST runs once over the region
+// without suppression; each candidate is scored once, when a window first needs it, with FAST's
+// corner score (the largest
 // threshold at which it is still a corner, minus one: the value cv::FAST reports as response,
 // whatever threshold found it); and a window's corners are those of its detection area (3 px
 // inside the window) whose score beats each of its 8 neighbours that is a corner of the same
@@ -35,7 +36,8 @@ class FastWindows {
   FastWindows(const cv::Mat& image, const cv::Rect& region, int threshold);
 
   /// Appends cv::FAST(image(window), ..., threshold, true)'s keypoints in image coordinates.
-  /// `window` must lie inside the constructor's region. Not thread-safe (scores are cached).
+  /// Throws InputError when `window` does not lie inside the constructor's region. Not
+  /// thread-safe (scores are cached).
   void detect(const cv::Rect& window, std::vector<cv::KeyPoint>& corners) const;
 
  private:
