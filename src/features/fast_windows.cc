@@ -83,7 +83,9 @@ FastWindows::FastWindows(const cv::Mat& image, const cv::Rect& region, int thres
   }
   roi_ = image(region);
   offsets_ = circleOffsets(static_cast<int>(roi_.step1()));
-  scores_ = cv::Mat::zeros(region.size(), CV_8UC1);
+  // Not cv::Mat::zeros: its first use builds an OpenCV singleton, racing when the two images'
+  // extractions start together (ThreadSanitizer).
+  scores_ = cv::Mat(region.size(), CV_8UC1, cv::Scalar(0));
   std::vector<cv::KeyPoint> candidates;
   cv::FAST(roi_, candidates, threshold, false);
   std::vector<cv::Point> corners;
