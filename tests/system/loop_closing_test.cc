@@ -53,9 +53,27 @@ const fs::path& circleSequence() {
 
 struct LoopRun {
   double ate_m = 0.0;
+  double end_drift_m = 0.0;  ///< Position error of the last pose relative to the first.
   LoopSummary loops;
   Trajectory ground_truth;
 };
+
+/// The ground-truth pose nearest to t_ns.
+SE3d truthAt(const Trajectory& gt, TimeNs t_ns) {
+  const StampedPose* best = &gt.front();
+  for (const StampedPose& p : gt)
+    if (std::llabs(p.t_ns - t_ns) < std::llabs(best->t_ns - t_ns)) best = &p;
+  return best->T_w_x;
+}
+
+/// How far the last estimated pose is from the truth when both are seen from the first pose: the
+/// drift a loop back to the start removes.
+double endDrift(const Trajectory& gt, const Trajectory& estimate) {
+  const StampedPose& first = estimate.front();
+  const StampedPose& last = estimate.back();
+  const SE3d truth = truthAt(gt, first.t_ns).inverse() * truthAt(gt, last.t_ns);
+  return ((first.T_w_x.inverse() * last.T_w_x).t - truth.t).norm();
+}
 
 LoopRun runCircle(SensorMode mode, bool loop_closing, bool deterministic = true) {
   io::DatasetSourceOptions source_options;
@@ -77,15 +95,8 @@ LoopRun runCircle(SensorMode mode, bool loop_closing, bool deterministic = true)
   run.ate_m = eval::evaluate(source->groundTruth(), slam.trajectory(), evaluation).ate_trans.rmse;
   run.loops = slam.loopSummary();
   run.ground_truth = source->groundTruth();
+  run.end_drift_m = endDrift(run.ground_truth, slam.trajectory());
   return run;
-}
-
-/// The ground-truth pose nearest to t_ns.
-SE3d truthAt(const Trajectory& gt, TimeNs t_ns) {
-  const StampedPose* best = &gt.front();
-  for (const StampedPose& p : gt)
-    if (std::llabs(p.t_ns - t_ns) < std::llabs(best->t_ns - t_ns)) best = &p;
-  return best->T_w_x;
 }
 
 void expectTrueLoops(const LoopRun& run) {
@@ -105,10 +116,13 @@ TEST(LoopClosing, StereoClosesTheCircleAndLowersTheAte) {
   EXPECT_TRUE(off.loops.loops.empty());
   ASSERT_GE(on.loops.loops.size(), 1u);
   expectTrueLoops(on);
-  // Measured: 14.7 mm without, 9.7 mm with the loop.
+  // Measured: ATE 6.9 mm without, 5.2 mm with the loop; the last pose seen from the first is off
+  // by 20.5 mm without, 8.5 mm with it.
   EXPECT_LT(on.ate_m, 0.8 * off.ate_m);
+  EXPECT_LT(on.end_drift_m, 0.5 * off.end_drift_m);
   std::cout << "stereo: ATE " << off.ate_m << " m without loop closing, " << on.ate_m << " m with "
-            << on.loops.loops.size() << " loops\n";
+            << on.loops.loops.size() << " loops; end drift " << off.end_drift_m << " m without, "
+            << on.end_drift_m << " m with\n";
 }
 
 TEST(LoopClosing, StereoClosesTheCircleFromItsOwnThreadInTheConcurrentPipeline) {
@@ -119,11 +133,17 @@ TEST(LoopClosing, StereoClosesTheCircleFromItsOwnThreadInTheConcurrentPipeline) 
   ASSERT_GE(on.loops.loops.size(), 1u);
   expectTrueLoops(on);
   EXPECT_GT(on.loops.keyframes, 10u);
-  // Measured in four pairs of concurrent runs: 9.3-9.9 mm without, 7.6 mm with the loop.
-  EXPECT_LT(on.ate_m, 0.9 * off.ate_m);
+  // Measured in 19 pairs of concurrent runs, two or three test processes at a time: the last pose
+  // seen from the first is off by 17.8-20.8 mm without, 8.6-10.6 mm with the loop, and once, three
+  // processes on two cores, 13.3 mm with it. The ATE of the whole circle moves less (6.8-7.0 mm
+  // without, 5.5-6.6 mm with; a CI run under load saw 7.0 against 6.6 mm), so the drift the loop
+  // removes is what is asserted, and of the ATE only that the loop does not make it worse.
+  EXPECT_LT(on.end_drift_m, 0.8 * off.end_drift_m);
+  EXPECT_LT(on.ate_m, 1.05 * off.ate_m);
   std::cout << "stereo, concurrent: ATE " << off.ate_m << " m without loop closing, " << on.ate_m
             << " m with " << on.loops.loops.size() << " loops (" << on.loops.skipped
-            << " keyframes skipped by the busy loop thread)\n";
+            << " keyframes skipped by the busy loop thread); end drift " << off.end_drift_m
+            << " m without, " << on.end_drift_m << " m with\n";
 }
 
 TEST(LoopClosing, StereoInertialAcceptsNoFalseLoopAndDoesNotHurt) {
