@@ -335,9 +335,9 @@ std::optional<SE3d> groundTruthAt(const Trajectory& gt, TimeNs t_ns) {
 }
 
 /// Loops accepted, stage times and, with a ground truth, each loop's relative-pose error (the
-/// verified T_match_query against the true one): a loop off by more than 0.5 m or 5 degrees is
-/// called false.
-void printLoops(const system::System& slam, const Trajectory& gt) {
+/// verified relative pose against the true one, loop::loopError): a loop off by more than 0.5 m
+/// or 5 degrees is called false.
+void printLoops(const system::System& slam, const Trajectory& gt, const SE3d& T_b_c) {
   if (!slam.options().loop.enabled) {
     fmt::print("loop closing: off\n");
     return;
@@ -367,7 +367,7 @@ void printLoops(const system::System& slam, const Trajectory& gt) {
     const std::optional<SE3d> gt_query = groundTruthAt(gt, l.query_t_ns);
     const std::optional<SE3d> gt_match = groundTruthAt(gt, l.match_t_ns);
     if (gt_query && gt_match) {
-      const SE3d error = (gt_match->inverse() * *gt_query).inverse() * l.T_match_query;
+      const SE3d error = loop::loopError(l, gt_match->inverse() * *gt_query, T_b_c);
       const double angle_deg = rotationAngle(error.rotation()) * 180.0 / M_PI;
       const bool wrong = error.t.norm() > 0.5 || angle_deg > 5.0;
       ++checked;
@@ -375,11 +375,13 @@ void printLoops(const system::System& slam, const Trajectory& gt) {
       truth = fmt::format("relative pose error {:.3f} m, {:.2f} deg{}", error.t.norm(), angle_deg,
                           wrong ? " (FALSE LOOP)" : "");
     }
+    const std::string scale =
+        l.scale != 1.0 ? fmt::format(" / scale {:.3f} (error at the true length)", l.scale) : "";
     fmt::print(
         "  loop: keyframe at {:.2f} s -> {:.2f} s, {} inliers, correction {:.3f} m / "
-        "{:.2f} deg; {}\n",
+        "{:.2f} deg{}; {}\n",
         nsToSeconds(l.query_t_ns), nsToSeconds(l.match_t_ns), l.inliers, l.correction.t.norm(),
-        rotationAngle(l.correction.rotation()) * 180.0 / M_PI, truth);
+        rotationAngle(l.correction.rotation()) * 180.0 / M_PI, scale, truth);
   }
   if (checked > 0)
     fmt::print("loop closing: {} of {} loops false against the ground truth\n", false_loops,
@@ -471,9 +473,9 @@ class RunCommand : public Command {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     sub_->add_option("--loop-closing", loop_closing_,
-                     "Loop closing (overrides loop.enabled): on | off. Stereo and "
-                     "stereo-inertial only; monocular modes run without it (their loops need "
-                     "Sim(3), not implemented yet)")
+                     "Loop closing (overrides loop.enabled): on | off. SE(3) loops in stereo and "
+                     "inertial maps (mono-inertial once its inertial stages have run), Sim(3) "
+                     "loops in mono maps")
         ->check(CLI::IsMember({"on", "off"}));
     sub_->add_option("--save-map", save_map_,
                      "Write the map at the end of the run to this file (versioned binary map "
@@ -681,9 +683,6 @@ class RunCommand : public Command {
                                     dynamic::toString(options.tracker.dynamic.mode)));
     }
     if (loop_closing_) {
-      if (*loop_closing_ == "on" && system::isMonocular(options.mode)) {
-        throw OptionError("--loop-closing", "monocular modes have no loop closing yet (Sim(3))");
-      }
       options.loop.enabled = *loop_closing_ == "on";
     }
     if (localization_only_) options.loop.enabled = false;
@@ -790,7 +789,7 @@ class RunCommand : public Command {
     printTimings(slam.options(), t);
     if (segmentation != "none") printSegmentation(t);
     printMatchCounts(slam);
-    printLoops(slam, source->groundTruth());
+    printLoops(slam, source->groundTruth(), source->camera0().T_b_c);
     printAccuracy(source->groundTruth(), slam.onlineTrajectory(), eval::AlignmentMode::kSE3,
                   "ATE of the poses as tracked");
     printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSE3);

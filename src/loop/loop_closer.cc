@@ -157,13 +157,51 @@ double tiltDegrees(const Eigen::Matrix3d& R) {
   return std::acos(c) * 180.0 / M_PI;
 }
 
+/// The correction that moves a keyframe from T_old to T_new, with a scale change (Sim(3));
+/// with scale 1 exactly the rigid T_new * T_old^-1.
+map::KeyFrameCorrection correctionBetween(const SE3d& T_old, const SE3d& T_new, double scale) {
+  map::KeyFrameCorrection c;
+  c.C = T_new * T_old.inverse();
+  c.scale = scale;
+  if (scale != 1.0) c.C.t = T_new.t - scale * (c.C.q * T_old.t);
+  return c;
+}
+
+/// Median ratio of the loop points' depths seen from the verified query camera to the query's
+/// own points' depths over the same keypoints: the loop's scale in a monocular map; `fallback`
+/// with fewer than 10 such pairs.
+double medianDepthRatio(const std::vector<std::pair<int, Eigen::Vector3d>>& loop_in_camera,
+                        const QueryPoints& mine, double fallback) {
+  std::map<int, double> own_depth;
+  for (std::size_t r = 0; r < mine.index.size(); ++r)
+    own_depth[mine.index[r]] = mine.p_c[r].norm();
+  std::vector<double> ratios;
+  for (const auto& [keypoint, p_c] : loop_in_camera) {
+    const auto own = own_depth.find(keypoint);
+    if (own != own_depth.end() && own->second > 0.0) ratios.push_back(p_c.norm() / own->second);
+  }
+  if (ratios.size() < 10) return fallback;
+  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
+  std::nth_element(ratios.begin(), middle, ratios.end());
+  return *middle;
+}
+
 }  // namespace
+
+SE3d loopError(const LoopClosure& loop, const SE3d& T_match_query_true, const SE3d& T_b_c) {
+  const SE3d truth = T_b_c.inverse() * T_match_query_true * T_b_c;
+  SE3d estimate = T_b_c.inverse() * loop.T_match_query * T_b_c;
+  if (loop.scale != 1.0 && estimate.t.norm() > 0.0)
+    estimate.t *= truth.t.norm() / estimate.t.norm();
+  return truth.inverse() * estimate;
+}
 
 LoopCloser::LoopCloser(const LoopClosingOptions& options, const CameraModel& camera0,
                        const optim::ReprojectionCamera& camera,
                        const mapping::PointFusionOptions& fusion,
-                       const optim::PoseOptimizerOptions& pose)
+                       const optim::PoseOptimizerOptions& pose, bool monocular)
     : options_(options),
+      monocular_(monocular),
       camera0_(camera0),
       camera_(camera),
       fuser_(fusion, camera),
@@ -235,6 +273,7 @@ std::optional<LoopClosure> LoopCloser::closeLoop(map::Map& map, const VerifiedLo
   const bool found = map.readKeyFrame(loop.query, [&](const map::KeyFrame& kf) {
     closure.query_t_ns = kf.t_ns;
     closure.correction = loop.T_w_b_query * kf.T_w_b.inverse();
+    closure.scale = loop.scale;
   }) && map.readKeyFrame(loop.match, [&](const map::KeyFrame& kf) {
     closure.match_t_ns = kf.t_ns;
   });
@@ -408,7 +447,9 @@ std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::K
     return error.squaredNorm() < options_.ransac_chi2 * sigma * sigma;
   };
   rejection = Rejection::kNoTransform;
-  const std::optional<RigidRansacResult> ransac = ransacRigid(a, b, is_inlier, options_.ransac);
+  const std::optional<RigidRansacResult> ransac =
+      similarity(inertial) ? ransacSimilarity(a, b, is_inlier, options_.ransac)
+                           : ransacRigid(a, b, is_inlier, options_.ransac);
   if (!ransac) return std::nullopt;
   std::vector<optim::PoseObservation> observations;
   for (std::size_t i = 0; i < matches.size(); ++i) {
@@ -470,10 +511,16 @@ std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::K
   const optim::PoseOptimizationResult final_pose =
       pose_optimizer_.optimize(first.T_w_b, cameras, observations);
   if (final_pose.num_inliers < options_.min_inliers) return std::nullopt;
-  for (std::size_t i = 0; i < pairs.size(); ++i)
-    if (final_pose.inliers[i]) out.matches.push_back(pairs[i]);
+  const SE3d T_c_w_final = (final_pose.T_w_b * camera_.T_b_c).inverse();
+  std::vector<std::pair<int, Eigen::Vector3d>> loop_in_camera;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (!final_pose.inliers[i]) continue;
+    out.matches.push_back(pairs[i]);
+    loop_in_camera.emplace_back(pairs[i].first, T_c_w_final * observations[i].p_w);
+  }
   out.inliers = final_pose.num_inliers;
   out.T_w_b_query = final_pose.T_w_b;
+  if (similarity(inertial)) out.scale = medianDepthRatio(loop_in_camera, mine, ransac->scale);
   if (inertial) {
     // Gravity observes roll and pitch: a loop that changes them is wrong; keep yaw and position.
     const Eigen::Matrix3d R_correction =
@@ -518,43 +565,52 @@ bool LoopCloser::correct(map::Map& map, const VerifiedLoop& loop, bool inertial)
   if (!nodes.contains(loop.query) || !nodes.contains(loop.match)) return false;
   for (const PoseGraphEdge& edge : loop_edges_)
     if (nodes.contains(edge.from) && nodes.contains(edge.to)) edges.push_back(edge);
-  const SE3d C_query = loop.T_w_b_query * nodes.at(loop.query).T_w_b.inverse();
+  const map::KeyFrameCorrection C_query =
+      correctionBetween(nodes.at(loop.query).T_w_b, loop.T_w_b_query, loop.scale);
   std::map<map::KeyFrameId, SE3d> initial;
+  std::map<map::KeyFrameId, double> initial_scale;
   for (const auto& [id, node] : nodes)
     initial[id] = node.T_w_b;
   const std::vector<map::KeyFrameId> current =
       sortedGroup(loop.query, map.bestCovisibleKeyFrames(loop.query, options_.group_keyframes));
-  for (const map::KeyFrameId id : current)
-    if (nodes.contains(id)) initial[id] = C_query * nodes.at(id).T_w_b;
+  for (const map::KeyFrameId id : current) {
+    if (!nodes.contains(id)) continue;
+    initial[id] = C_query.apply(nodes.at(id).T_w_b);
+    initial_scale[id] = loop.scale;
+  }
   for (const map::KeyFrameId k : current) {
     if (!nodes.contains(k)) continue;
     for (const map::KeyFrameId l : loop.loop_group) {
       if (!nodes.contains(l) || std::binary_search(current.begin(), current.end(), l)) continue;
       if (k != loop.query && l != loop.match)
         continue;  // the query to the loop group, its group to the match
-      const PoseGraphEdge edge = edgeBetween(l, nodes.at(l).T_w_b, k, initial.at(k));
+      PoseGraphEdge edge = edgeBetween(l, nodes.at(l).T_w_b, 1.0, k, initial.at(k), loop.scale);
       edges.push_back(edge);
+      edge.log_scale = 0.0;  // after this correction both frames have the map's one scale
       loop_edges_.push_back(edge);
     }
   }
   PoseGraphOptions graph = options_.pose_graph;
   graph.four_dof = inertial;
-  const PoseGraphResult result = optimizePoseGraph(initial, edges, {loop.match}, graph);
+  graph.seven_dof = similarity(inertial);
+  const PoseGraphResult result =
+      optimizePoseGraph(initial, edges, {loop.match}, graph, initial_scale);
 
   const map::Map::UpdateLock update = map.updateLock();  // the correction is one map update
-  std::map<map::KeyFrameId, SE3d> correction;
+  std::map<map::KeyFrameId, map::KeyFrameCorrection> correction;
   for (const auto& [id, node] : nodes)
-    correction[id] = result.T_w_b.at(id) * node.T_w_b.inverse();
-  const SE3d newest = correction.rbegin()->second;  // keyframes inserted meanwhile follow it
+    correction[id] = correctionBetween(node.T_w_b, result.T_w_b.at(id), result.scale.at(id));
+  // Keyframes inserted meanwhile follow the newest one.
+  const map::KeyFrameCorrection newest = correction.rbegin()->second;
   map::MapCorrection record;
   for (const map::KeyFrameId id : map.keyFrameIds()) {
     const auto it = correction.find(id);
-    const SE3d C = it == correction.end() ? newest : it->second;
-    map.readKeyFrame(id,
-                     [&](const map::KeyFrame& kf) { record.keyframes.emplace_back(kf.t_ns, C); });
+    map::KeyFrameCorrection C = it == correction.end() ? newest : it->second;
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) { C.t_ns = kf.t_ns; });
+    record.keyframes.push_back(C);
     const std::optional<map::KeyFrame> kf = map.keyFrame(id);
-    map.setKeyFramePose(id, C * kf->T_w_b);
-    if (inertial) map.setKeyFrameInertialState(id, C.rotation() * kf->v_w, kf->bg, kf->ba);
+    map.setKeyFramePose(id, C.apply(kf->T_w_b));
+    if (inertial) map.setKeyFrameInertialState(id, C.C.rotation() * kf->v_w, kf->bg, kf->ba);
     correction[id] = C;
   }
   for (const map::MapPointId id : map.mapPointIds()) {
@@ -565,11 +621,11 @@ bool LoopCloser::correct(map::Map& map, const VerifiedLoop& loop, bool inertial)
     if (!reference) continue;
     const auto it = correction.find(reference->first);
     if (it == correction.end()) continue;
-    map.setMapPointPosition(id, it->second * reference->second);
+    map.setMapPointPosition(id, it->second.apply(reference->second));
     map.updateNormalAndDistances(id);
   }
   std::stable_sort(record.keyframes.begin(), record.keyframes.end(),
-                   [](const auto& x, const auto& y) { return x.first < y.first; });
+                   [](const auto& x, const auto& y) { return x.t_ns < y.t_ns; });
   map.recordCorrection(std::move(record));
   return true;
 }

@@ -14,6 +14,8 @@ namespace superdyna::loop {
 void PoseGraphOptions::validate() const {
   if (iterations < 1) throw OptionError("loop.pose_graph_iterations", "must be >= 1");
   if (!(rotation_weight > 0.0)) throw OptionError("loop.pose_graph_rotation_weight", "must be > 0");
+  if (four_dof && seven_dof)
+    throw std::invalid_argument("a pose graph is 4-DoF or 7-DoF, not both");
 }
 
 Eigen::Matrix3d yawRotation(double yaw) {
@@ -27,6 +29,14 @@ double yawOf(const Eigen::Matrix3d& R) {
 PoseGraphEdge edgeBetween(map::KeyFrameId from, const SE3d& T_w_from, map::KeyFrameId to,
                           const SE3d& T_w_to) {
   return {from, to, T_w_from.inverse() * T_w_to};
+}
+
+PoseGraphEdge edgeBetween(map::KeyFrameId from, const SE3d& T_w_from, double s_from,
+                          map::KeyFrameId to, const SE3d& T_w_to, double s_to) {
+  PoseGraphEdge edge = edgeBetween(from, T_w_from, to, T_w_to);
+  edge.T_from_to.t /= s_from;
+  edge.log_scale = std::log(s_to / s_from);
+  return edge;
 }
 
 namespace {
@@ -56,6 +66,39 @@ struct RelativePoseError {
 
   Eigen::Quaterniond q_ij;
   Eigen::Vector3d t_ij;
+  double w;
+};
+
+/// Seven-DoF relative similarity residual; parameters q_i, t_i, sigma_i, q_j, t_j, sigma_j.
+struct RelativeSimilarityError {
+  RelativeSimilarityError(const PoseGraphEdge& edge, double rotation_weight)
+      : q_ij(edge.T_from_to.q),
+        t_ij(edge.T_from_to.t),
+        sigma_ij(edge.log_scale),
+        w(rotation_weight) {}
+
+  template <typename T>
+  bool operator()(const T* qi_raw, const T* ti_raw, const T* sigma_i, const T* qj_raw,
+                  const T* tj_raw, const T* sigma_j, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> qi(qi_raw);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_raw);
+    const Eigen::Map<const Eigen::Quaternion<T>> qj(qj_raw);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tj(tj_raw);
+    const Eigen::Quaternion<T> qi_inv = qi.conjugate();
+    const Eigen::Quaternion<T> error = q_ij.cast<T>().conjugate() * (qi_inv * qj);
+    const Eigen::Matrix<T, 3, 1> t_pred = (qi_inv * (tj - ti)) * exp(-sigma_i[0]);
+    const T sign = error.w() < T(0) ? T(-1) : T(1);
+    for (int k = 0; k < 3; ++k) {
+      residual[k] = T(2.0 * w) * sign * error.vec()(k);
+      residual[3 + k] = t_pred(k) - T(t_ij(k));
+    }
+    residual[6] = (sigma_j[0] - sigma_i[0]) - T(sigma_ij);
+    return true;
+  }
+
+  Eigen::Quaterniond q_ij;
+  Eigen::Vector3d t_ij;
+  double sigma_ij;
   double w;
 };
 
@@ -92,8 +135,14 @@ struct YawPositionError {
 struct Node {
   Eigen::Quaterniond q;  ///< Six-DoF: the rotation; four-DoF: the initial one (held).
   Eigen::Vector3d t;
-  double yaw = 0.0;  ///< Four-DoF: offset about world z from the initial rotation.
+  double yaw = 0.0;    ///< Four-DoF: offset about world z from the initial rotation.
+  double sigma = 0.0;  ///< Seven-DoF: log of the scale.
 };
+
+void setQuaternionManifold(ceres::Problem& problem, Node& node) {
+  if (!problem.HasManifold(node.q.coeffs().data()))
+    problem.SetManifold(node.q.coeffs().data(), new ceres::EigenQuaternionManifold());
+}
 
 void solve(ceres::Problem& problem, const PoseGraphOptions& options, PoseGraphResult& result) {
   const ceres::Solver::Options solver =
@@ -110,11 +159,15 @@ void solve(ceres::Problem& problem, const PoseGraphOptions& options, PoseGraphRe
 PoseGraphResult optimizePoseGraph(const std::map<map::KeyFrameId, SE3d>& initial,
                                   const std::vector<PoseGraphEdge>& edges,
                                   const std::set<map::KeyFrameId>& fixed,
-                                  const PoseGraphOptions& options) {
+                                  const PoseGraphOptions& options,
+                                  const std::map<map::KeyFrameId, double>& initial_scale) {
   options.validate();
   std::map<map::KeyFrameId, Node> nodes;
-  for (const auto& [id, T] : initial)
-    nodes[id] = {T.q.normalized(), T.t, 0.0};
+  for (const auto& [id, T] : initial) {
+    const auto scale = initial_scale.find(id);
+    nodes[id] = {T.q.normalized(), T.t, 0.0,
+                 scale == initial_scale.end() ? 0.0 : std::log(scale->second)};
+  }
   ceres::Problem problem;
   for (const PoseGraphEdge& edge : edges) {
     const auto from = nodes.find(edge.from);
@@ -133,16 +186,21 @@ PoseGraphResult optimizePoseGraph(const std::map<map::KeyFrameId, SE3d>& initial
           new ceres::AutoDiffCostFunction<YawPositionError, 4, 1, 3, 1, 3>(
               new YawPositionError(R_i0, yaw_ij, edge.T_from_to.t, options.rotation_weight)),
           nullptr, &i.yaw, i.t.data(), &j.yaw, j.t.data());
+    } else if (options.seven_dof) {
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<RelativeSimilarityError, 7, 4, 3, 1, 4, 3, 1>(
+              new RelativeSimilarityError(edge, options.rotation_weight)),
+          nullptr, i.q.coeffs().data(), i.t.data(), &i.sigma, j.q.coeffs().data(), j.t.data(),
+          &j.sigma);
+      setQuaternionManifold(problem, i);
+      setQuaternionManifold(problem, j);
     } else {
       problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RelativePoseError, 6, 4, 3, 4, 3>(
                                    new RelativePoseError(edge.T_from_to, options.rotation_weight)),
                                nullptr, i.q.coeffs().data(), i.t.data(), j.q.coeffs().data(),
                                j.t.data());
-      for (Node* node : {&i, &j}) {
-        if (!problem.HasManifold(node->q.coeffs().data())) {
-          problem.SetManifold(node->q.coeffs().data(), new ceres::EigenQuaternionManifold());
-        }
-      }
+      setQuaternionManifold(problem, i);
+      setQuaternionManifold(problem, j);
     }
   }
   for (const map::KeyFrameId id : fixed) {
@@ -158,6 +216,9 @@ PoseGraphResult optimizePoseGraph(const std::map<map::KeyFrameId, SE3d>& initial
     if (problem.HasParameterBlock(node->second.t.data())) {
       problem.SetParameterBlockConstant(node->second.t.data());
     }
+    if (problem.HasParameterBlock(&node->second.sigma)) {
+      problem.SetParameterBlockConstant(&node->second.sigma);
+    }
   }
   PoseGraphResult result;
   if (problem.NumResidualBlocks() > 0) solve(problem, options, result);
@@ -166,6 +227,7 @@ PoseGraphResult optimizePoseGraph(const std::map<map::KeyFrameId, SE3d>& initial
         options.four_dof ? Eigen::Quaterniond(yawRotation(node.yaw) * node.q.toRotationMatrix())
                          : node.q.normalized();
     result.T_w_b[id] = SE3d(q, node.t);
+    result.scale[id] = std::exp(node.sigma);
   }
   return result;
 }

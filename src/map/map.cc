@@ -384,12 +384,12 @@ void Map::transformWorld(const Sim3d& S_new_old) {
   }
 }
 
-SE3d MapCorrection::correctionAt(TimeNs t_ns) const {
-  if (keyframes.empty()) return SE3d();
+KeyFrameCorrection MapCorrection::correctionAt(TimeNs t_ns) const {
+  if (keyframes.empty()) return {};
   const auto after = std::upper_bound(
       keyframes.begin(), keyframes.end(), t_ns,
-      [](TimeNs t, const std::pair<TimeNs, SE3d>& keyframe) { return t < keyframe.first; });
-  return after == keyframes.begin() ? keyframes.front().second : std::prev(after)->second;
+      [](TimeNs t, const KeyFrameCorrection& keyframe) { return t < keyframe.t_ns; });
+  return after == keyframes.begin() ? keyframes.front() : *std::prev(after);
 }
 
 void Map::recordCorrection(MapCorrection correction) {

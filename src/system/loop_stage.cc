@@ -17,8 +17,8 @@ constexpr std::size_t kMaxWaitingKeyFrames = 2;
 LoopStage::LoopStage(const loop::LoopClosingOptions& options, const CameraModel& camera0,
                      const optim::ReprojectionCamera& camera,
                      const mapping::PointFusionOptions& fusion,
-                     const optim::PoseOptimizerOptions& pose, bool threaded)
-    : closer_(options, camera0, camera, fusion, pose) {
+                     const optim::PoseOptimizerOptions& pose, bool threaded, bool monocular)
+    : closer_(options, camera0, camera, fusion, pose, monocular) {
   if (threaded) worker_ = std::make_unique<MappingWorker>(kMaxWaitingKeyFrames);
 }
 

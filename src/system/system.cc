@@ -101,8 +101,6 @@ SystemOptions checkedOptions(SystemOptions options) {
   options.tracker.use_imu = usesImu(options.mode);
   // Triangulation between keyframes is the only source of new points of a monocular map.
   if (isMonocular(options.mode)) options.mapping.triangulate = true;
-  // Monocular maps need Sim(3) loops (scale drift), which do not exist yet.
-  if (isMonocular(options.mode)) options.loop.enabled = false;
   // Stereo rigs triangulate between keyframes only what stereo cannot measure.
   options.mapping.triangulation.skip_stereo_keypoints = !isMonocular(options.mode);
   applyClassWiseMatching(options);
@@ -136,9 +134,9 @@ System::System(const SystemOptions& options, const sensors::CameraCalibration& c
     mapping::PointFusionOptions fusion = options_.mapping.fusion;
     fusion.sigma0_px = options_.mapping.sigma0_px;
     const CameraModel camera0 = cam0.cameraModel();
-    loop_ = std::make_unique<LoopStage>(options_.loop, camera0,
-                                        optim::ReprojectionCamera::from(camera0, cam0.T_b_c),
-                                        fusion, options_.tracker.pose, !options_.deterministic);
+    loop_ = std::make_unique<LoopStage>(
+        options_.loop, camera0, optim::ReprojectionCamera::from(camera0, cam0.T_b_c), fusion,
+        options_.tracker.pose, !options_.deterministic, isMonocular(options_.mode));
     tracker_.setKeyFrameObserver(loop_.get());
   }
   if (!options_.deterministic) {

@@ -302,8 +302,8 @@ TrackingResult Tracker::track(const Frame& input) {
   if (has_map_) {
     // A loop corrected since the frame was tracked moves the frame and its reference keyframe
     // alike: the pose relative to the keyframe stays what tracking measured.
-    const SE3d correction = followMapCorrections(&result.T_w_b);
-    result.T_w_reference = correction * result.T_w_reference;
+    const map::KeyFrameCorrection correction = followMapCorrections(&result.T_w_b);
+    result.T_w_reference = correction.apply(result.T_w_reference);
   }
   if (result.relocalized) {
     restartMotionAt(result.T_w_b, frame.t_ns, prediction);
@@ -326,15 +326,16 @@ bool Tracker::collectImu(const Frame& frame, TrackingResult& result) {
   return false;
 }
 
-SE3d Tracker::followMapCorrections(SE3d* pose) {
-  SE3d total;
+map::KeyFrameCorrection Tracker::followMapCorrections(SE3d* pose) {
+  map::KeyFrameCorrection total;
   const std::vector<map::MapCorrection> corrections = map_->correctionsSince(corrections_followed_);
   for (const map::MapCorrection& correction : corrections) {
-    const SE3d C = correction.correctionAt(t_last_ns_);
-    T_w_b_last_ = C * T_w_b_last_;
-    velocity_w_ = C.rotation() * velocity_w_;
-    if (pose) *pose = C * *pose;
-    total = C * total;
+    const map::KeyFrameCorrection C = correction.correctionAt(t_last_ns_);
+    T_w_b_last_ = C.apply(T_w_b_last_);
+    velocity_w_ = C.scale * (C.C.rotation() * velocity_w_);
+    motion_.t = C.scale * motion_.t;  // a monocular map's scale changed around the frame
+    if (pose) *pose = C.apply(*pose);
+    total = C.after(total);
   }
   corrections_followed_ += static_cast<int>(corrections.size());
   return total;
@@ -845,9 +846,9 @@ map::KeyFrameId Tracker::insertKeyFrame(const Frame& frame, SE3d& T_w_b,
   {
     const map::Map::UpdateLock update = map_->updateLock();  // the keyframe with its new points
     // A loop corrected since the frame was tracked: the keyframe joins the corrected map.
-    const SE3d correction = followMapCorrections(&T_w_b);
+    const map::KeyFrameCorrection correction = followMapCorrections(&T_w_b);
     kf.T_w_b = T_w_b;
-    kf.v_w = correction.rotation() * kf.v_w;
+    kf.v_w = correction.scale * (correction.C.rotation() * kf.v_w);
     id = map_->addKeyFrame(std::move(kf));
     created = createStereoPoints(frame, T_w_b, id, tracked);
   }

@@ -88,6 +88,46 @@ TEST(PoseGraph, SixDofClosesADriftedLoop) {
   expectClosedAndDistributed(result, loop);
 }
 
+/// The loop of driftedLoop as monocular odometry drifts: each step's length shrinks (scale
+/// drift, to 0.67 of the truth at the end) and the heading turns a little; the loop edge measures
+/// the true similarity between the first and the last keyframe's frames.
+DriftedLoop scaleDriftedLoop(int n, double& end_scale) {
+  DriftedLoop loop = driftedLoop(n);
+  loop.edges.clear();
+  SE3d drifted = loop.truth.at(0);
+  loop.drifted[0] = drifted;
+  double f = 1.0;
+  for (int i = 1; i < n; ++i) {
+    f = std::exp(-0.4 * i / (n - 1));
+    SE3d step = loop.truth.at(i - 1).inverse() * loop.truth.at(i);
+    step.t *= f;
+    drifted = drifted * SE3d(yawRotation(0.004), Eigen::Vector3d::Zero()) * step;
+    loop.drifted[i] = drifted;
+    loop.edges.push_back(edgeBetween(i - 1, loop.drifted[i - 1], i, loop.drifted[i]));
+  }
+  end_scale = 1.0 / f;  // a unit length of the last keyframe's frame in the world
+  loop.edges.push_back(
+      edgeBetween(0, loop.truth.at(0), 1.0, loop.last, loop.truth.at(loop.last), end_scale));
+  return loop;
+}
+
+TEST(PoseGraph, SevenDofClosesALoopThatDriftedInScale) {
+  double end_scale = 0.0;
+  const DriftedLoop loop = scaleDriftedLoop(40, end_scale);
+  PoseGraphOptions options;
+  options.seven_dof = true;
+  const PoseGraphResult result = optimizePoseGraph(loop.drifted, loop.edges, {0}, options);
+  expectClosedAndDistributed(result, loop);
+  EXPECT_NEAR(result.scale.at(loop.last), end_scale, 0.01 * end_scale);
+  EXPECT_EQ(result.scale.at(0), 1.0);  // held
+  // Scales grow along the loop, as the drift shrank the steps.
+  EXPECT_GT(result.scale.at(20), 1.1);
+  EXPECT_LT(result.scale.at(20), result.scale.at(loop.last));
+  // Six DoF cannot undo the shrunken steps: its end stays further off.
+  const PoseGraphResult rigid = optimizePoseGraph(loop.drifted, loop.edges, {0});
+  EXPECT_GT(maxPositionError(rigid.T_w_b, loop), 2.0 * maxPositionError(result.T_w_b, loop));
+}
+
 TEST(PoseGraph, WithoutTheLoopEdgeNothingMoves) {
   DriftedLoop loop = driftedLoop(20);
   loop.edges.pop_back();

@@ -714,6 +714,30 @@ TEST(MapTest, AnErasedKeyFrameFollowsAScaledChangeOfTheWorld) {
   EXPECT_LT(resolved.q.angularDistance(expected.q), 1e-12);
 }
 
+TEST(MapCorrections, ASimilarityMovesPosesAndPointsAndComposes) {
+  const SE3d C(Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ())),
+               Eigen::Vector3d(1, 2, 3));
+  const KeyFrameCorrection first{0, C, 2.0};
+  const SE3d T(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX())),
+               Eigen::Vector3d(0.5, -1, 4));
+  const Eigen::Vector3d p(0.3, 0.2, 0.1);
+  // The pose moves as the point at its position; its rotation turns by C.
+  EXPECT_LT((first.apply(T).t - first.apply(T.t)).norm(), 1e-12);
+  EXPECT_LT((first.apply(p) - (2.0 * (C.rotation() * p) + C.t)).norm(), 1e-12);
+  EXPECT_LT(first.apply(T).q.angularDistance(C.q * T.q), 1e-12);
+  // A point fixed in the body frame stays fixed in it, at the scaled distance.
+  const Eigen::Vector3d in_body(0.0, 0.0, 1.0);
+  EXPECT_NEAR((first.apply(T * in_body) - first.apply(T).t).norm(), 2.0, 1e-12);
+  const KeyFrameCorrection second{0, T, 0.5};
+  const KeyFrameCorrection both = second.after(first);
+  EXPECT_EQ(both.scale, 1.0);
+  EXPECT_LT((both.apply(p) - second.apply(first.apply(p))).norm(), 1e-12);
+  // Scale 1 is exactly SE3d's product.
+  const KeyFrameCorrection rigid{0, C, 1.0};
+  EXPECT_EQ(rigid.apply(T).t, (C * T).t);
+  EXPECT_EQ(rigid.apply(T).q.coeffs(), (C * T).q.coeffs());
+}
+
 TEST(MapCorrections, AreLoggedAndLookedUpByTime) {
   Map map;
   EXPECT_EQ(map.correctionCount(), 0);
@@ -721,12 +745,13 @@ TEST(MapCorrections, AreLoggedAndLookedUpByTime) {
   MapCorrection correction;
   const SE3d a(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0));
   const SE3d b(Eigen::Quaterniond::Identity(), Eigen::Vector3d(2, 0, 0));
-  correction.keyframes = {{100, a}, {200, b}};
-  EXPECT_EQ(correction.correctionAt(50).t.x(), 1.0);   // before all: the first
-  EXPECT_EQ(correction.correctionAt(150).t.x(), 1.0);  // the keyframe before
-  EXPECT_EQ(correction.correctionAt(200).t.x(), 2.0);
-  EXPECT_EQ(correction.correctionAt(900).t.x(), 2.0);
-  EXPECT_EQ(MapCorrection{}.correctionAt(5).t.norm(), 0.0);
+  correction.keyframes = {{100, a, 1.0}, {200, b, 1.0}};
+  EXPECT_EQ(correction.correctionAt(50).C.t.x(), 1.0);   // before all: the first
+  EXPECT_EQ(correction.correctionAt(150).C.t.x(), 1.0);  // the keyframe before
+  EXPECT_EQ(correction.correctionAt(200).C.t.x(), 2.0);
+  EXPECT_EQ(correction.correctionAt(900).C.t.x(), 2.0);
+  EXPECT_EQ(MapCorrection{}.correctionAt(5).C.t.norm(), 0.0);
+  EXPECT_EQ(MapCorrection{}.correctionAt(5).scale, 1.0);
   map.recordCorrection(correction);
   map.recordCorrection(MapCorrection{});
   EXPECT_EQ(map.correctionCount(), 2);

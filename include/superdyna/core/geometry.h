@@ -59,9 +59,19 @@ struct Sim3d {
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
 
+  Sim3d() = default;
+  Sim3d(double scale, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation)
+      : s(scale), R(rotation), t(translation) {}
+  /// The rigid transform T as a similarity of the given scale: p -> scale * R_T * p + t_T.
+  static Sim3d fromSE3(const SE3d& T, double scale = 1.0) {
+    return Sim3d(scale, T.rotation(), T.t);
+  }
+
   Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return s * (R * p) + t; }
   /// Applies the similarity to a pose: rotation R * R_p, position s * R * t_p + t.
   SE3d operator*(const SE3d& pose) const;
+  /// Composition: (a * b) * p == a * (b * p).
+  Sim3d operator*(const Sim3d& other) const;
   Sim3d inverse() const;
 };
 

@@ -1,6 +1,7 @@
 #pragma once
-// Loop closing for stereo and stereo-inertial maps (SE(3) geometry), run after local mapping of
-// each keyframe (ORB-SLAM's loop closing, written anew without a vocabulary).
+// Loop closing, run after local mapping of each keyframe (ORB-SLAM's loop closing, written anew
+// without a vocabulary): SE(3) geometry for stereo and inertial maps, Sim(3) for visual monocular
+// maps, whose scale drifts.
 //
 // 1. Detection: the keyframe's place descriptors query the KeyFrameDatabase (then join it). The
 //    keyframes it shares map points with, and those less than min_time_gap_s older, are no
@@ -15,12 +16,17 @@
 //    then guided matching by projection and a second motion-only BA. Accepted with at least
 //    min_inliers inliers. Inertial maps: the correction must leave roll and pitch within
 //    max_roll_pitch_deg (gravity observes them); it is then reduced to yaw and position.
-// 3. Correction: pose graph (pose_graph.h; 4-DoF for inertial maps, 6-DoF otherwise) over the
+//    Monocular maps: the RANSAC fits a similarity (the reprojection test and the motion-only BA
+//    do not see the scale), and the loop's scale is the median ratio, over the final inliers, of
+//    the loop point's depth in the verified camera to the query's own point's depth.
+// 3. Correction: pose graph (pose_graph.h; 4-DoF for inertial maps, 7-DoF Sim(3) for monocular
+//    ones, 6-DoF otherwise) over the
 //    essential graph: the temporal chain of keyframes (their spanning tree), covisibility edges of
 //    at least strong_covisibility shared points, the edges of earlier loops and the new loop's
 //    (the query keyframe's group at its corrected poses to the loop keyframe and its group); the
-//    loop keyframe is held. Each keyframe moves by its correction C (T_new = C T_old), each map
-//    point with its reference (oldest observing) keyframe's, velocities rotate. All of it is one
+//    loop keyframe is held. Each keyframe moves by its correction C (T_new = C T_old; with a
+//    scale, map::KeyFrameCorrection), each map point with its reference (oldest observing)
+//    keyframe's, velocities rotate. All of it is one
 //    map update (Map::updateLock()) and is recorded in the map (Map::recordCorrection) for the
 //    poses held outside it. Keyframes inserted while the graph was optimised move with the newest
 //    graph keyframe. Then the loop's duplicated points are fused: the verified matches make the
@@ -50,7 +56,7 @@
 namespace superdyna::loop {
 
 struct LoopClosingOptions {
-  bool enabled = true;  ///< Run loop closing (stereo and stereo-inertial maps).
+  bool enabled = true;  ///< Run loop closing.
   KeyFrameDatabaseOptions database;
   double min_time_gap_s = 10.0;  ///< Candidates are at least this much older [s], >= 0.
   double min_score = 0.02;       ///< Absolute bar on the database score, [0, 1].
@@ -67,7 +73,7 @@ struct LoopClosingOptions {
   double guided_radius_px = 8.0;  ///< Search radius of the guided matching [px], > 0.
   int min_inliers = 60;           ///< Inliers after guided matching to accept a loop, >= 3.
   double max_roll_pitch_deg = 2.0;  ///< Inertial maps: largest roll / pitch correction [deg], > 0.
-  PoseGraphOptions pose_graph;      ///< four_dof is set from the map (inertial or not).
+  PoseGraphOptions pose_graph;      ///< four_dof / seven_dof are set from the map.
   int strong_covisibility = 100;    ///< Covisibility edges of the essential graph, >= 1.
   bool fuse = true;                 ///< Fuse the loop's duplicated points after the correction.
   /// Throws OptionError naming the first invalid field (prefix "loop.").
@@ -84,9 +90,16 @@ struct LoopClosure {
   /// The verified relative body pose T_match_query (in the match's frame, after the correction).
   SE3d T_match_query;
   int inliers = 0;
-  /// The correction of the query keyframe before the pose graph (T_new = C T_old).
+  /// The correction of the query keyframe before the pose graph (T_new = C T_old) ...
   SE3d correction;
+  double scale = 1.0;  ///< ... and of its scale (Sim(3) loops of monocular maps).
 };
+
+/// How far an accepted loop's relative pose is from the true one, T_match_query_true (body
+/// frames): the error of the relative pose of the left camera (T_b_c). A Sim(3) loop (scale != 1,
+/// a monocular map with its own unit) is judged at the true length. Camera frames, because a
+/// monocular map places its bodies by the metric camera-body lever arm in the map's unit.
+SE3d loopError(const LoopClosure& loop, const SE3d& T_match_query_true, const SE3d& T_b_c);
 
 /// Why the verification of a candidate stopped.
 enum class Rejection {
@@ -101,7 +114,8 @@ inline constexpr int kRejectionKinds = 4;
 struct VerifiedLoop {
   map::KeyFrameId query = map::kNoKeyFrame;
   map::KeyFrameId match = map::kNoKeyFrame;
-  SE3d T_w_b_query;  ///< The query keyframe's pose in the loop's frame.
+  SE3d T_w_b_query;    ///< The query keyframe's pose in the loop's frame.
+  double scale = 1.0;  ///< Monocular maps: a length on the query's side is this long at the loop.
   std::vector<map::KeyFrameId> loop_group;
   /// Inlier matches: query keypoint index -> loop map point.
   std::vector<std::pair<int, map::MapPointId>> matches;
@@ -122,11 +136,12 @@ struct LoopStep {
 class LoopCloser {
  public:
   /// camera0: the left camera (projection for guided matching); camera: the same as a
-  /// reprojection camera in the body frame (its baseline enables stereo observations). Validates
-  /// the options.
+  /// reprojection camera in the body frame (its baseline enables stereo observations);
+  /// monocular: the map has one camera (without an IMU its loops are Sim(3)). Validates the
+  /// options.
   LoopCloser(const LoopClosingOptions& options, const CameraModel& camera0,
              const optim::ReprojectionCamera& camera, const mapping::PointFusionOptions& fusion,
-             const optim::PoseOptimizerOptions& pose);
+             const optim::PoseOptimizerOptions& pose, bool monocular = false);
 
   /// Detects, verifies and corrects a loop at `keyframe` (a keyframe of `map` local mapping has
   /// processed): findLoop() then closeLoop(). inertial: the map is gravity-aligned (4-DoF).
@@ -177,8 +192,11 @@ class LoopCloser {
   /// False when the query or the match keyframe is gone (nothing changed).
   bool correct(map::Map& map, const VerifiedLoop& loop, bool inertial);
   void fuseLoop(map::Map& map, const VerifiedLoop& loop) const;
+  /// Whether loops of the map are similarities: monocular without the IMU's scale.
+  bool similarity(bool inertial) const { return monocular_ && !inertial; }
 
   LoopClosingOptions options_;
+  bool monocular_ = false;
   CameraModel camera0_;
   optim::ReprojectionCamera camera_;
   mapping::PointFuser fuser_;

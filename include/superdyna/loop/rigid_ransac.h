@@ -1,7 +1,8 @@
 #pragma once
-// RANSAC for the rigid transform between two sets of corresponding 3D points (SE(3), no scale):
-// minimal samples of three correspondences solved in closed form (Umeyama / Horn, Eigen::umeyama),
-// inliers by a caller-given test, refit on all inliers of the best hypothesis.
+// RANSAC for the rigid transform between two sets of corresponding 3D points (SE(3)), or for the
+// similarity (Sim(3): with a scale, for monocular maps, whose scale drifts): minimal samples of
+// three correspondences solved in closed form (Umeyama / Horn, Eigen::umeyama), inliers by a
+// caller-given test, refit on all inliers of the best hypothesis.
 
 #include <Eigen/Core>
 #include <functional>
@@ -22,7 +23,8 @@ struct RigidRansacOptions {
 };
 
 struct RigidRansacResult {
-  SE3d T_a_b;                 ///< a[i] ~= T_a_b * b[i] for the inliers.
+  SE3d T_a_b;                 ///< a[i] ~= T_a_b * b[i] for the inliers (rigid) ...
+  double scale = 1.0;         ///< ... a[i] ~= scale * R_a_b * b[i] + t_a_b (similarity).
   std::vector<bool> inliers;  ///< Per correspondence.
   int num_inliers = 0;
 };
@@ -33,10 +35,24 @@ std::optional<SE3d> fitRigid(const std::vector<Eigen::Vector3d>& a,
                              const std::vector<Eigen::Vector3d>& b,
                              const std::vector<bool>& use = {});
 
+/// Least-squares similarity S with a[i] ~= S * b[i] over the flagged correspondences; nullopt as
+/// fitRigid, or when the points of b all coincide.
+std::optional<Sim3d> fitSimilarity(const std::vector<Eigen::Vector3d>& a,
+                                   const std::vector<Eigen::Vector3d>& b,
+                                   const std::vector<bool>& use = {});
+
 /// is_inlier(T, i): whether correspondence i agrees with the hypothesis T_a_b (e.g. a
 /// reprojection error bound). nullopt when no hypothesis reaches options.min_inliers. Throws
 /// std::invalid_argument when a and b differ in size.
 std::optional<RigidRansacResult> ransacRigid(
+    const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+    const std::function<bool(const SE3d& T_a_b, std::size_t i)>& is_inlier,
+    const RigidRansacOptions& options = {});
+
+/// As ransacRigid, for the similarity a[i] ~= s * R * b[i] + t; is_inlier sees its rotation and
+/// translation (R, t) as T_a_b: a test that projects a-points into the frame of b (a camera) is
+/// blind to the scale, which only stretches b's points along their rays.
+std::optional<RigidRansacResult> ransacSimilarity(
     const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
     const std::function<bool(const SE3d& T_a_b, std::size_t i)>& is_inlier,
     const RigidRansacOptions& options = {});

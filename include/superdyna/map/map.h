@@ -97,17 +97,34 @@ std::vector<sensors::ImuSample> mergeImuSamples(const std::vector<sensors::ImuSa
 std::vector<sensors::ImuSample> thinImuSamples(std::vector<sensors::ImuSample> samples,
                                                std::size_t max_samples);
 
-/// A correction of the map's keyframes that does not move the world as a whole (a loop closure's
-/// pose graph): each listed keyframe moved by C (T_w_b_new = C * T_w_b_old). Poses held outside
-/// the map (the tracker's last frame, the recorded frame trajectory) follow it with the
-/// correction of the keyframe nearest before them in time (correctionAt()).
-struct MapCorrection {
-  /// (keyframe time, C) of every corrected keyframe, by increasing time.
-  std::vector<std::pair<TimeNs, SE3d>> keyframes;
+/// How a loop correction moves one keyframe and everything placed relative to it. Rigid
+/// (scale 1): T_new = C * T_old. With a scale (monocular maps, Sim(3)): the similarity (scale, C)
+/// applied to the pose, rotation C.q * q_old and position scale * (C.q * t_old) + C.t; points
+/// p_new = scale * (C.q * p_old) + C.t. With scale 1 both are exactly SE3d's products.
+struct KeyFrameCorrection {
+  TimeNs t_ns = 0;  ///< The keyframe's time.
+  SE3d C;
+  double scale = 1.0;
 
-  /// C of the keyframe with the latest time <= t_ns (the first one before all; identity when
-  /// empty).
-  SE3d correctionAt(TimeNs t_ns) const;
+  SE3d apply(const SE3d& T) const { return SE3d(C.q * T.q, scale * (C.q * T.t) + C.t); }
+  Eigen::Vector3d apply(const Eigen::Vector3d& p) const { return scale * (C.q * p) + C.t; }
+  /// This correction applied after `first`: apply(first.apply(x)) for every x.
+  KeyFrameCorrection after(const KeyFrameCorrection& first) const {
+    return {t_ns, apply(first.C), scale * first.scale};
+  }
+};
+
+/// A correction of the map's keyframes that does not move the world as a whole (a loop closure's
+/// pose graph): each listed keyframe moved by its correction. Poses held outside the map (the
+/// tracker's last frame, the recorded frame trajectory) follow it with the correction of the
+/// keyframe nearest before them in time (correctionAt()).
+struct MapCorrection {
+  /// Every corrected keyframe's correction, by increasing time.
+  std::vector<KeyFrameCorrection> keyframes;
+
+  /// The correction of the keyframe with the latest time <= t_ns (the first one before all;
+  /// identity when empty).
+  KeyFrameCorrection correctionAt(TimeNs t_ns) const;
 };
 
 /// Everything that makes up a map, ids included: what a map file stores (map_file.h). The

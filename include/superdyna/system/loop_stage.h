@@ -52,7 +52,7 @@ class LoopStage final : public tracking::KeyFrameObserver {
   /// loop thread (see above).
   LoopStage(const loop::LoopClosingOptions& options, const CameraModel& camera0,
             const optim::ReprojectionCamera& camera, const mapping::PointFusionOptions& fusion,
-            const optim::PoseOptimizerOptions& pose, bool threaded = false);
+            const optim::PoseOptimizerOptions& pose, bool threaded = false, bool monocular = false);
   ~LoopStage() override;
   LoopStage(const LoopStage&) = delete;
   LoopStage& operator=(const LoopStage&) = delete;

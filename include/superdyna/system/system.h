@@ -56,8 +56,8 @@ struct SystemOptions {
   mapping::LocalMapperOptions mapping;
   /// Instance segmentation (section `semantics`); the System runs the segmenter it is given.
   semantics::SegmenterOptions semantics;
-  /// Loop closing (section `loop`). Stereo and stereo-inertial only: the System turns it off for
-  /// monocular modes (their maps need Sim(3) loops, not implemented yet).
+  /// Loop closing (section `loop`): SE(3) loops in stereo and inertial maps (an inertial map's
+  /// keyframes reach it once its inertial stages have run), Sim(3) loops in visual mono maps.
   loop::LoopClosingOptions loop;
   bool deterministic = true;  ///< Sequential pipeline; false = concurrent (see above).
   int frame_queue = 2;        ///< Concurrent: frames the front end may build ahead, >= 1.

@@ -465,7 +465,7 @@ class Tracker {
   int referenceTrackedPoints() const;
   /// Moves the tracker's last pose and velocity (and *pose, when given) by the map corrections
   /// recorded since the last call (the loop closer's); returns their composition.
-  SE3d followMapCorrections(SE3d* pose = nullptr);
+  map::KeyFrameCorrection followMapCorrections(SE3d* pose = nullptr);
   /// Whether the keyframe observer may see this map's keyframes (see KeyFrameObserver).
   bool mapSettled() const;
   /// Inserts the keyframe at T_w_b, first moved by any map correction not followed yet.
