@@ -16,6 +16,7 @@
 #include "superdyna/eval/plot.h"
 #include "superdyna/eval/report_json.h"
 #include "superdyna/eval/report_table.h"
+#include "superdyna/io/calibration.h"
 #include "superdyna/io/trajectory_io.h"
 
 namespace superdyna::apps {
@@ -44,6 +45,7 @@ struct EvalArguments {
   std::optional<fs::path> alignment;       ///< A report whose alignment is applied unchanged.
   std::optional<fs::path> alignment_from;  ///< Another run's estimate to align ...
   std::optional<fs::path> alignment_gt;    ///< ... to its ground truth.
+  std::optional<fs::path> camera_frame;    ///< A EuRoC sensor.yaml: evaluate that sensor's pose.
 };
 
 class EvalCommand : public Command {
@@ -116,6 +118,12 @@ class EvalCommand : public Command {
                      "Ground truth of the --alignment-from estimate (same formats as --gt)")
         ->check(CLI::ExistingFile)
         ->excludes(given);
+    sub_->add_option("--camera-frame", args_.camera_frame,
+                     "Evaluate the pose of this camera instead of the body: a EuRoC sensor.yaml "
+                     "(e.g. mav0/cam0/sensor.yaml) whose T_BS moves every pose of the ground "
+                     "truth and the estimates. For visual mono runs: their map places the body "
+                     "through the metric camera-body lever arm in the map's own unit")
+        ->check(CLI::ExistingFile);
     sub_->footer(
         "Formats are detected from the content unless given. TUM: 't tx ty tz qx qy qz qw' (s); "
         "EuRoC: 't_ns,px,py,pz,qw,qx,qy,qz,...'; KITTI: 12 numbers a line (3x4 pose).\n"
@@ -188,29 +196,31 @@ class EvalCommand : public Command {
     return other.alignment;
   }
 
-  static Trajectory readTrajectory(const fs::path& file, const std::string& format,
-                                   const std::optional<fs::path>& times,
-                                   const std::optional<int>& segment) {
+  Trajectory readTrajectory(const fs::path& file, const std::string& format,
+                            const std::optional<fs::path>& times,
+                            const std::optional<int>& segment) const {
     io::TrajectoryReadOptions read;
     read.format = io::parseTrajectoryFormat(format);
     read.kitti_times = times;
     read.segment = segment;
-    return io::readTrajectory(file, read);
+    return inEvaluatedFrame(io::readTrajectory(file, read));
   }
 
   Trajectory readGroundTruth() const {
-    io::TrajectoryReadOptions read;
-    read.format = io::parseTrajectoryFormat(args_.gt_format);
-    read.kitti_times = args_.gt_times;
-    read.segment = args_.gt_segment;
-    return io::readTrajectory(args_.gt, read);
+    return readTrajectory(args_.gt, args_.gt_format, args_.gt_times, args_.gt_segment);
   }
 
   Trajectory readEstimate(const fs::path& file) const {
-    io::TrajectoryReadOptions read;
-    read.format = io::parseTrajectoryFormat(args_.est_format);
-    read.kitti_times = args_.est_times;
-    return io::readTrajectory(file, read);
+    return readTrajectory(file, args_.est_format, args_.est_times, std::nullopt);
+  }
+
+  /// The poses of --camera-frame's camera (T_w_b * T_b_c), or the trajectory as it is.
+  Trajectory inEvaluatedFrame(Trajectory trajectory) const {
+    if (!args_.camera_frame) return trajectory;
+    const SE3d T_b_c = io::readCameraCalibration(*args_.camera_frame).T_b_c;
+    for (StampedPose& pose : trajectory)
+      pose.T_w_x = pose.T_w_x * T_b_c;
+    return trajectory;
   }
 
   eval::PlotOptions plotOptions() const {

@@ -41,6 +41,26 @@ PoseGraphEdge edgeBetween(map::KeyFrameId from, const SE3d& T_w_from, double s_f
 
 namespace {
 
+/// The rotation and translation residuals of a relative pose edge (6 values): node poses
+/// (q_i, t_i), (q_j, t_j), the position of j seen from i multiplied by `inverse_scale_i`.
+template <typename T>
+void relativePoseResidual(const T* qi_raw, const T* ti_raw, const T* qj_raw, const T* tj_raw,
+                          const T& inverse_scale_i, const Eigen::Quaterniond& q_ij,
+                          const Eigen::Vector3d& t_ij, double w, T* residual) {
+  const Eigen::Map<const Eigen::Quaternion<T>> qi(qi_raw);
+  const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_raw);
+  const Eigen::Map<const Eigen::Quaternion<T>> qj(qj_raw);
+  const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tj(tj_raw);
+  const Eigen::Quaternion<T> qi_inv = qi.conjugate();
+  const Eigen::Quaternion<T> error = q_ij.cast<T>().conjugate() * (qi_inv * qj);
+  const Eigen::Matrix<T, 3, 1> t_pred = (qi_inv * (tj - ti)) * inverse_scale_i;
+  const T sign = error.w() < T(0) ? T(-1) : T(1);  // the shorter of the two rotations
+  for (int k = 0; k < 3; ++k) {
+    residual[k] = T(2.0 * w) * sign * error.vec()(k);
+    residual[3 + k] = t_pred(k) - T(t_ij(k));
+  }
+}
+
 /// Six-DoF relative pose residual; parameters q_i (x, y, z, w), t_i, q_j, t_j.
 struct RelativePoseError {
   RelativePoseError(const SE3d& T_ij, double rotation_weight)
@@ -49,18 +69,7 @@ struct RelativePoseError {
   template <typename T>
   bool operator()(const T* qi_raw, const T* ti_raw, const T* qj_raw, const T* tj_raw,
                   T* residual) const {
-    const Eigen::Map<const Eigen::Quaternion<T>> qi(qi_raw);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_raw);
-    const Eigen::Map<const Eigen::Quaternion<T>> qj(qj_raw);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tj(tj_raw);
-    const Eigen::Quaternion<T> qi_inv = qi.conjugate();
-    const Eigen::Quaternion<T> error = q_ij.cast<T>().conjugate() * (qi_inv * qj);
-    const Eigen::Matrix<T, 3, 1> t_pred = qi_inv * (tj - ti);
-    const T sign = error.w() < T(0) ? T(-1) : T(1);  // the shorter of the two rotations
-    for (int k = 0; k < 3; ++k) {
-      residual[k] = T(2.0 * w) * sign * error.vec()(k);
-      residual[3 + k] = t_pred(k) - T(t_ij(k));
-    }
+    relativePoseResidual(qi_raw, ti_raw, qj_raw, tj_raw, T(1.0), q_ij, t_ij, w, residual);
     return true;
   }
 
@@ -80,18 +89,7 @@ struct RelativeSimilarityError {
   template <typename T>
   bool operator()(const T* qi_raw, const T* ti_raw, const T* sigma_i, const T* qj_raw,
                   const T* tj_raw, const T* sigma_j, T* residual) const {
-    const Eigen::Map<const Eigen::Quaternion<T>> qi(qi_raw);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(ti_raw);
-    const Eigen::Map<const Eigen::Quaternion<T>> qj(qj_raw);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tj(tj_raw);
-    const Eigen::Quaternion<T> qi_inv = qi.conjugate();
-    const Eigen::Quaternion<T> error = q_ij.cast<T>().conjugate() * (qi_inv * qj);
-    const Eigen::Matrix<T, 3, 1> t_pred = (qi_inv * (tj - ti)) * exp(-sigma_i[0]);
-    const T sign = error.w() < T(0) ? T(-1) : T(1);
-    for (int k = 0; k < 3; ++k) {
-      residual[k] = T(2.0 * w) * sign * error.vec()(k);
-      residual[3 + k] = t_pred(k) - T(t_ij(k));
-    }
+    relativePoseResidual(qi_raw, ti_raw, qj_raw, tj_raw, exp(-sigma_i[0]), q_ij, t_ij, w, residual);
     residual[6] = (sigma_j[0] - sigma_i[0]) - T(sigma_ij);
     return true;
   }

@@ -5,7 +5,8 @@
 #     ../shared is present) on a real EuRoC ground truth with a simulated drifting estimate;
 #  2. bad input stops with exit code 2 and a message naming the file and line;
 #  3. an output path equal to an input is refused and the input left intact;
-#  4. `run` writes its effective options, and reloading them reproduces the run byte for byte.
+#  4. `run` writes its effective options, and reloading them reproduces the run byte for byte;
+#  5. `eval --camera-frame` evaluates the camera's poses (a mono-like estimate).
 # Usage: eval_cli_test.sh SUPERDYNA PYTHON REPO_DIR SHARED_DIR ($SUPERDYNA_SHARED_DIR overrides it)
 # A missing ../shared part is left out with a message, or fails the test when
 # $SUPERDYNA_REQUIRE_SHARED is 1 (CI), as in the C++ tests (tests/support/test_support.h).
@@ -91,6 +92,37 @@ cp "$gt_csv" "$work/gt_copy.csv"
 expect_failure "is a file of the dataset; refusing to overwrite it" \
   "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo --output "$gt_csv"
 cmp -s "$gt_csv" "$work/gt_copy.csv" || { echo "dataset file was modified"; exit 1; }
+# --camera-frame: a visual mono map's unit (here 0.2 m) with the metric camera-body lever arm puts
+# the body off in a way no similarity removes; the camera's poses are exact up to the scale.
+"$python" - "$work/generated/groundtruth.txt" "$work/tiny/mav0/cam0/sensor.yaml" \
+  "$work/mono.txt" <<'PY'
+import re, sys
+import numpy as np
+def rot(q):
+    x, y, z, w = q
+    return np.array([[1-2*(y*y+z*z), 2*(x*y-z*w), 2*(x*z+y*w)],
+                     [2*(x*y+z*w), 1-2*(x*x+z*z), 2*(y*z-x*w)],
+                     [2*(x*z-y*w), 2*(y*z+x*w), 1-2*(x*x+y*y)]])
+gt = np.loadtxt(sys.argv[1])
+values = re.search(r"T_BS:.*?data:\s*\[([^\]]*)\]", open(sys.argv[2]).read(), re.S).group(1)
+T_b_c = np.array([float(v) for v in values.split(",")]).reshape(4, 4)
+with open(sys.argv[3], "w") as out:
+    for row in gt:
+        T_w_b = np.eye(4)
+        T_w_b[:3, :3], T_w_b[:3, 3] = rot(row[4:8]), row[1:4]
+        T_w_c = T_w_b @ T_b_c
+        T_w_c[:3, 3] *= 0.2                          # the map's own unit
+        p = (T_w_c @ np.linalg.inv(T_b_c))[:3, 3]    # the body through the metric lever arm
+        out.write("%.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n" % (row[0], *p, *row[4:8]))
+PY
+ate_rmse() { grep "ATE trans" | awk '{print $4}'; }
+body=$("$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/mono.txt" \
+  --align sim3 | ate_rmse)
+camera=$("$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/mono.txt" \
+  --align sim3 --camera-frame "$work/tiny/mav0/cam0/sensor.yaml" | ate_rmse)
+echo "mono-like estimate: Sim(3) ATE of the body $body m, of the camera $camera m"
+"$python" -c "import sys; sys.exit(0 if float('$body') > 0.01 and float('$camera') < 1e-6 else 1)" ||
+  { echo "--camera-frame did not evaluate the camera"; exit 1; }
 # `run` prints and writes its effective options; reloaded, they reproduce the run bit for bit.
 "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial --deterministic \
   --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$work/a.txt" \

@@ -182,8 +182,9 @@ TEST(LoopClosing, StereoClosesTheCircleFromItsOwnThreadInTheConcurrentPipeline) 
 }
 
 TEST(LoopClosing, StereoInertialAcceptsNoFalseLoopAndDoesNotHurt) {
-  // On this flight the inertial map settles late (4 s) and its two consistent candidates fail the
-  // RANSAC: no loop, and then the run must equal the one without loop closing.
+  // On this flight the inertial map settles late (4 s). Whatever loop it accepts must be true and
+  // must not make the run worse (measured: one loop, ATE 11.1 mm without, 5.6 mm with; earlier
+  // versions found none, and then the run equalled the one without loop closing).
   const LoopRun off = runCircle(SensorMode::kStereoInertial, false);
   const LoopRun on = runCircle(SensorMode::kStereoInertial, true);
   expectTrueLoops(on);
