@@ -108,10 +108,6 @@ SE3d Sim3d::operator*(const SE3d& pose) const {
   return SE3d(Eigen::Matrix3d(R * pose.rotation()), (*this) * pose.t);
 }
 
-Sim3d Sim3d::operator*(const Sim3d& other) const {
-  return Sim3d(s * other.s, R * other.R, s * (R * other.t) + t);
-}
-
 Sim3d Sim3d::inverse() const {
   Sim3d inv;
   inv.s = 1.0 / s;

@@ -70,8 +70,6 @@ struct Sim3d {
   Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return s * (R * p) + t; }
   /// Applies the similarity to a pose: rotation R * R_p, position s * R * t_p + t.
   SE3d operator*(const SE3d& pose) const;
-  /// Composition: (a * b) * p == a * (b * p).
-  Sim3d operator*(const Sim3d& other) const;
   Sim3d inverse() const;
 };
 
