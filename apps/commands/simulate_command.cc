@@ -147,6 +147,12 @@ class SimulateCommand : public Command {
                      "features")
         ->check(CLI::Range(0.01, 1.0))
         ->capture_default_str();
+    sub_->add_option("--texture-variety", options_.world.texture_variety,
+                     "Repeated textures, for testing place recognition against aliasing: the "
+                     "static surfaces of each kind share this many textures, so different places "
+                     "look alike; 0 gives every surface its own")
+        ->check(CLI::Range(0, 1000))
+        ->capture_default_str();
     sub_->add_option("--parked-density", options_.world.parked_density,
                      "Places tried for parked cars and standing people per metre of path, "
                      "relative to the scene's usual number (a full parking lot: 4, about 2.5x the "
@@ -436,8 +442,15 @@ class SimulateCommand : public Command {
                         fmt::format("the world of {} has background contrast {}", sequence.string(),
                                     source.background_contrast));
     }
+    if (sub_->count("--texture-variety") > 0 &&
+        options_.world.texture_variety != source.texture_variety) {
+      throw OptionError("--texture-variety",
+                        fmt::format("the world of {} has texture variety {}", sequence.string(),
+                                    source.texture_variety));
+    }
     options_.world.scene = source.scene;
     options_.world.background_contrast = source.background_contrast;
+    options_.world.texture_variety = source.texture_variety;
     options_.texture_dir = source.texture_dir;
     if (fs::weakly_canonical(fs::absolute(sequence)) ==
         fs::weakly_canonical(fs::absolute(options_.output_dir))) {

@@ -649,13 +649,14 @@ void writeWorldSource(std::ostream& out, const WorldSource& w) {
       "world_source:\n  trajectory: {}\n  trajectory_format: {}\n"
       "  trajectory_times: {}\n  segment: {}\n  motion_convention: {}\n  mount_height_m: {}\n"
       "  start_s: {}\n  duration_s: {}\n  knot_spacing_s: {}\n  scene: {}\n  seed: {}\n"
-      "  texture_dir: {}\n  background_contrast: {}\n  static_world_fingerprint: {}\n",
+      "  texture_dir: {}\n  background_contrast: {}\n  texture_variety: {}\n"
+      "  static_world_fingerprint: {}\n",
       optionalText(w.motion.trajectory_file, "procedural"), io::toString(w.motion.read.format),
       optionalText(w.motion.read.kitti_times, "none"),
       w.motion.read.segment ? std::to_string(*w.motion.read.segment) : std::string("none"),
       toString(w.motion.convention), w.motion.mount_height_m, w.motion.start_s, w.motion.duration_s,
       w.knot_spacing_s, toString(w.scene), w.seed, optionalText(w.texture_dir, "procedural"),
-      w.background_contrast, w.fingerprint);
+      w.background_contrast, w.texture_variety, w.fingerprint);
 }
 
 void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const MotionWindow& m,
@@ -666,7 +667,8 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
       "# SuperDynaSLAM synthetic sequence: effective options and summary\n"
       "trajectory: {}\nmotion_convention: {}\nstart_s: {}\nduration_s: {}\nscene: {}\n"
       "dynamic: {}\ndynamic_pattern: {}\npattern_size: {}\npattern_distance_m: [{}, {}]\n"
-      "slow_movers: {}\nunlabelled_share: {}\nbackground_contrast: {}\nparked_density: {}\n"
+      "slow_movers: {}\nunlabelled_share: {}\nbackground_contrast: {}\ntexture_variety: {}\n"
+      "parked_density: {}\n"
       "seed: {}\nnoise: {}\npixel_noise_sigma: {}\ndistortion: {}\n"
       "texture_dir: {}\nbaseline_m: {}\ncamera_rate_hz: {}\nimu_rate_hz: {}\n"
       "knot_spacing_s: {}\nimu_offset_m: [{}, {}, {}]\nimu_rotation_deg: [{}, {}, {}]\n",
@@ -674,7 +676,8 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
       toString(m.convention), o.motion.start_s, o.motion.duration_s, toString(o.world.scene),
       toString(o.world.dynamic), toString(o.world.pattern.pattern), o.world.pattern.group_size,
       o.world.pattern.min_distance_m, o.world.pattern.max_distance_m, o.world.pattern.slow,
-      o.world.unlabelled_share, o.world.background_contrast, o.world.parked_density, o.seed,
+      o.world.unlabelled_share, o.world.background_contrast, o.world.texture_variety,
+      o.world.parked_density, o.seed,
       o.noise, o.pixel_noise_sigma, o.rig.distortion,
       o.texture_dir ? o.texture_dir->string() : "procedural", o.rig.baseline_m,
       o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, o.rig.imu_offset_m.x(),
@@ -743,6 +746,7 @@ std::pair<World, WorldSource> buildSequenceWorld(const SimulationOptions& option
                        options.seed,
                        absolute(options.texture_dir),
                        options.world.background_contrast,
+                       options.world.texture_variety,
                        staticWorldFingerprint(world)};
     source.motion.trajectory_file = absolute(options.motion.trajectory_file);
     source.motion.read.kitti_times = absolute(options.motion.read.kitti_times);
@@ -758,9 +762,11 @@ std::pair<World, WorldSource> buildSequenceWorld(const SimulationOptions& option
   static_options.scene = from.scene;
   static_options.seed = from.seed;
   static_options.background_contrast = from.background_contrast;
+  static_options.texture_variety = from.texture_variety;
   if (from.texture_dir) static_options.photos = loadPhotos(*from.texture_dir);
   world_options.scene = from.scene;
   world_options.background_contrast = from.background_contrast;
+  world_options.texture_variety = from.texture_variety;
   world_options.photos = static_options.photos;
   World world =
       buildWorldIn(static_options, cameraPathOf(source_spline, source_motion, options.rig),
@@ -956,6 +962,15 @@ WorldSource readWorldSource(const fs::path& sequence) {
           yaml.at(node["background_contrast"], "world_source.background_contrast"),
           fmt::format("expected a number in (0, 1], got {}", source.background_contrast));
     }
+  }
+  if (node["texture_variety"]) {
+    const std::uint64_t variety = integer("texture_variety");
+    if (variety > 1000) {
+      throw InputError(yaml.at(node["texture_variety"], "world_source.texture_variety"),
+                       fmt::format("expected an integer in [0, 1000], got '{}'",
+                                   text("texture_variety")));
+    }
+    source.texture_variety = static_cast<int>(variety);
   }
   source.fingerprint = integer("static_world_fingerprint");
   return source;

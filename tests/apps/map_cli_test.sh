@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # End-to-end checks of map files, a second sequence in the same world and borrowed alignments:
 #  1. simulate --world-of: a second sequence (another part of the flight, another seed) rebuilds
-#     the first one's static world (same fingerprint); a contradicting --scene is refused;
+#     the first one's static world (same fingerprint); a contradicting --scene, background
+#     contrast or texture variety, or a damaged world_source value, is refused;
 #  2. run --save-map writes a map; the map options' wrong combinations are refused with a message
 #     (exit 2): --localization-only without --load-map, --load-map without --localization-only,
 #     --save-map onto the --load-map file, a truncated map file, a map of another sensor mode;
@@ -40,10 +41,16 @@ expect_refusal "is a street scene" "$superdyna" simulate --out "$work/c" --world
   --scene indoor --duration 2
 expect_refusal "has background contrast 1" "$superdyna" simulate --out "$work/c" \
   --world-of "$work/a" --background-contrast 0.5 --duration 2
+expect_refusal "has texture variety 0" "$superdyna" simulate --out "$work/c" \
+  --world-of "$work/a" --texture-variety 2 --duration 2
 mkdir -p "$work/a-edited"
 sed 's/^  background_contrast: 1$/  background_contrast: 2/' "$work/a/simulation.yaml" \
   >"$work/a-edited/simulation.yaml"
 expect_refusal "world_source.background_contrast" "$superdyna" simulate --out "$work/c" \
+  --world-of "$work/a-edited" --duration 2
+sed 's/^  texture_variety: 0$/  texture_variety: -3/' "$work/a/simulation.yaml" \
+  >"$work/a-edited/simulation.yaml"
+expect_refusal "world_source.texture_variety" "$superdyna" simulate --out "$work/c" \
   --world-of "$work/a-edited" --duration 2
 echo "world reused, fingerprint $(fingerprint "$work/a")"
 

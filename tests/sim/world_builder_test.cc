@@ -163,6 +163,48 @@ TEST(WorldBuilderTest, ParkedDensityFillsTheLotWithStaticAgents) {
   EXPECT_EQ(countAgents(full, true), 0);
 }
 
+TEST(WorldBuilderTest, TextureVarietyRepeatsTheStaticTexturesOnTheSameLayout) {
+  const auto [usual, aliased] = usualAndChangedParking(
+      DynamicLevel::kMid, [](WorldOptions& options) { options.texture_variety = 2; });
+  const std::vector<Quad>& surfaces = usual.scene.objects.front().quads;
+  const std::vector<Quad>& aliased_surfaces = aliased.scene.objects.front().quads;
+  ASSERT_EQ(aliased_surfaces.size(), surfaces.size());
+  for (std::size_t i = 0; i < surfaces.size(); ++i) {
+    EXPECT_EQ(aliased_surfaces[i].origin, surfaces[i].origin) << "surface " << i;
+    EXPECT_EQ(aliased_surfaces[i].edge_u, surfaces[i].edge_u) << "surface " << i;
+  }
+  ASSERT_EQ(aliased.agents.size(), usual.agents.size());
+  // Usually every surface has its own texture; parking's static surfaces are of three kinds
+  // (ground, facades at 2 cm texels, clutter at 1 cm), which now share two textures each.
+  EXPECT_EQ(texturesOf(usual, false).size(), surfaces.size());
+  const std::set<int> shared = texturesOf(aliased, false);
+  EXPECT_EQ(shared.size(), 6u);
+  ASSERT_GT(surfaces.size(), 50u);
+  // Each surface shows the top-left of its texture, which covers the largest of them.
+  for (const Quad& quad : aliased_surfaces) {
+    const Texture& texture = aliased.scene.textures.at(static_cast<std::size_t>(quad.texture));
+    EXPECT_GE(texture.image().cols * texture.texelSizeM(), quad.edge_u.norm() - 1e-9);
+    EXPECT_GE(texture.image().rows * texture.texelSizeM(), quad.edge_v.norm() - 1e-9);
+  }
+  // The agents look as they did.
+  ASSERT_EQ(aliased.scene.objects.size(), usual.scene.objects.size());
+  for (std::size_t i = 1; i < usual.scene.objects.size(); ++i) {
+    const std::vector<Quad>& quads = usual.scene.objects[i].quads;
+    ASSERT_EQ(aliased.scene.objects[i].quads.size(), quads.size());
+    for (std::size_t j = 0; j < quads.size(); ++j) {
+      const auto texture = [j](const World& world, std::size_t object) {
+        const int index = world.scene.objects[object].quads[j].texture;
+        return world.scene.textures.at(static_cast<std::size_t>(index)).image();
+      };
+      EXPECT_EQ(cv::norm(texture(aliased, i), texture(usual, i), cv::NORM_INF), 0.0)
+          << "agent " << i << ", quad " << j;
+    }
+  }
+  WorldOptions options;
+  options.texture_variety = -1;
+  EXPECT_THROW(options.validate(), OptionError);
+}
+
 TEST(WorldBuilderTest, BackgroundContrastAndParkedDensityOutOfRangeAreErrors) {
   for (const double contrast : {0.0, -0.1, 1.5}) {
     WorldOptions options;

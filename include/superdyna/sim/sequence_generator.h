@@ -72,6 +72,7 @@ struct WorldSource {
   std::uint64_t seed = 1;
   std::optional<std::filesystem::path> texture_dir;  ///< Absolute.
   double background_contrast = 1.0;  ///< WorldOptions::background_contrast (1 when not written).
+  int texture_variety = 0;           ///< WorldOptions::texture_variety (0 when not written).
   std::uint64_t fingerprint = 0;     ///< staticWorldFingerprint of that world.
 };
 

@@ -73,6 +73,12 @@ struct WorldOptions {
   /// so 4 gives about 2.5 times as many agents). The moving agents are drawn after them from the
   /// same stream, so another density gives other movers too.
   double parked_density = 1.0;
+  /// Repeated textures, for testing place recognition against perceptual aliasing: 0 gives every
+  /// static surface (ground tile, wall panel, block face) a texture of its own; N > 0 makes the
+  /// static surfaces of each kind (texture style and texel size) share N textures, so different
+  /// places look alike (each surface shows the top-left of its shared texture). The layout and the
+  /// agents are those of the same seed with 0.
+  int texture_variety = 0;
   /// Real photos (grayscale) to build textures from instead of procedural ones; may be empty.
   std::vector<cv::Mat> photos;
 
