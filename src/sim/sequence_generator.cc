@@ -677,8 +677,7 @@ void writeSimulationYaml(const fs::path& file, const SimulationOptions& o, const
       toString(o.world.dynamic), toString(o.world.pattern.pattern), o.world.pattern.group_size,
       o.world.pattern.min_distance_m, o.world.pattern.max_distance_m, o.world.pattern.slow,
       o.world.unlabelled_share, o.world.background_contrast, o.world.texture_variety,
-      o.world.parked_density, o.seed,
-      o.noise, o.pixel_noise_sigma, o.rig.distortion,
+      o.world.parked_density, o.seed, o.noise, o.pixel_noise_sigma, o.rig.distortion,
       o.texture_dir ? o.texture_dir->string() : "procedural", o.rig.baseline_m,
       o.rig.camera_rate_hz, o.imu.rate_hz, o.knot_spacing_s, o.rig.imu_offset_m.x(),
       o.rig.imu_offset_m.y(), o.rig.imu_offset_m.z(), o.rig.imu_rotation_deg.x(),
@@ -966,9 +965,9 @@ WorldSource readWorldSource(const fs::path& sequence) {
   if (node["texture_variety"]) {
     const std::uint64_t variety = integer("texture_variety");
     if (variety > 1000) {
-      throw InputError(yaml.at(node["texture_variety"], "world_source.texture_variety"),
-                       fmt::format("expected an integer in [0, 1000], got '{}'",
-                                   text("texture_variety")));
+      throw InputError(
+          yaml.at(node["texture_variety"], "world_source.texture_variety"),
+          fmt::format("expected an integer in [0, 1000], got '{}'", text("texture_variety")));
     }
     source.texture_variety = static_cast<int>(variety);
   }

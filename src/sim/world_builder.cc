@@ -297,8 +297,8 @@ class WorldBuilder {
 
   void finishSharedTextures() {
     for (const SharedTexture& shared : shared_textures_) {
-      world_.scene.textures[static_cast<std::size_t>(shared.texture)] = makeTexture(
-          shared.width_m, shared.height_m, shared.texel_m, shared.style, shared.seed);
+      world_.scene.textures[static_cast<std::size_t>(shared.texture)] =
+          makeTexture(shared.width_m, shared.height_m, shared.texel_m, shared.style, shared.seed);
     }
   }
 
@@ -937,9 +937,9 @@ void WorldOptions::validate() const {
                       fmt::format("must be in (0, 1], got {}", background_contrast));
   }
   if (texture_variety < 0 || texture_variety > 1000) {
-    throw OptionError("texture-variety",
-                      fmt::format("must be in [0, 1000] (0: every surface its own), got {}",
-                                  texture_variety));
+    throw OptionError(
+        "texture-variety",
+        fmt::format("must be in [0, 1000] (0: every surface its own), got {}", texture_variety));
   }
   pattern.validate();
   if (scene == SceneType::kIndoor &&
