@@ -7,6 +7,7 @@
 #include <set>
 
 #include "superdyna/core/error.h"
+#include "superdyna/core/geometry.h"
 #include "superdyna/features/feature_set.h"
 #include "superdyna/features/matcher.h"
 #include "superdyna/mapping/keyframe_keypoints.h"
@@ -35,6 +36,11 @@ void LoopClosingOptions::validate() const {
   if (!(guided_radius_px > 0.0)) throw OptionError("loop.guided_radius_px", "must be > 0");
   if (min_inliers < 3) throw OptionError("loop.min_inliers", "must be >= 3");
   if (!(max_roll_pitch_deg > 0.0)) throw OptionError("loop.max_roll_pitch_deg", "must be > 0");
+  if (!(max_correction_deg > 0.0)) throw OptionError("loop.max_correction_deg", "must be > 0");
+  if (!(max_correction_path_share > 0.0)) {
+    throw OptionError("loop.max_correction_path_share", "must be > 0");
+  }
+  if (!(min_correction_m >= 0.0)) throw OptionError("loop.min_correction_m", "must be >= 0");
   if (strong_covisibility < 1) throw OptionError("loop.strong_covisibility", "must be >= 1");
 }
 
@@ -530,7 +536,31 @@ std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::K
     out.T_w_b_query =
         SE3d(yawRotation(yawOf(R_correction)) * query.T_w_b.rotation(), out.T_w_b_query.t);
   }
+  rejection = Rejection::kBeyondDrift;
+  if (!withinDrift(map, query, candidate, out.T_w_b_query, inertial)) return std::nullopt;
   return out;
+}
+
+bool LoopCloser::withinDrift(const map::Map& map, const map::KeyFrame& query, map::KeyFrameId match,
+                             const SE3d& T_w_b_new, bool inertial) const {
+  const Eigen::Matrix3d R_correction = T_w_b_new.rotation() * query.T_w_b.rotation().transpose();
+  if (rotationAngle(R_correction) * 180.0 / M_PI > options_.max_correction_deg) return false;
+  std::optional<TimeNs> t_match;
+  map.readKeyFrame(match, [&](const map::KeyFrame& kf) { t_match = kf.t_ns; });
+  if (!t_match) return false;
+  std::vector<std::pair<TimeNs, Eigen::Vector3d>> positions;
+  for (const map::KeyFrameId id : map.keyFrameIds()) {
+    map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+      if (kf.t_ns >= *t_match && kf.t_ns <= query.t_ns) positions.emplace_back(kf.t_ns, kf.T_w_b.t);
+    });
+  }
+  std::sort(positions.begin(), positions.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  double path = 0.0;
+  for (std::size_t i = 1; i < positions.size(); ++i)
+    path += (positions[i].second - positions[i - 1].second).norm();
+  const double floor = similarity(inertial) ? 0.0 : options_.min_correction_m;
+  return (T_w_b_new.t - query.T_w_b.t).norm() <= options_.max_correction_path_share * path + floor;
 }
 
 bool LoopCloser::correct(map::Map& map, const VerifiedLoop& loop, bool inertial) {

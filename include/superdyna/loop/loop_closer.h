@@ -16,6 +16,11 @@
 //    then guided matching by projection and a second motion-only BA. Accepted with at least
 //    min_inliers inliers. Inertial maps: the correction must leave roll and pitch within
 //    max_roll_pitch_deg (gravity observes them); it is then reduced to yaw and position.
+//    Every map: a correction larger than the odometry can have drifted since the match keyframe
+//    is a different place that looks the same (perceptual aliasing), not a loop: the query
+//    keyframe may turn by at most max_correction_deg and move by at most
+//    max_correction_path_share of the path between the match and the query keyframes (plus
+//    min_correction_m in metric maps).
 //    Monocular maps: the RANSAC fits a similarity (the reprojection test and the motion-only BA
 //    do not see the scale), and the loop's scale is the median ratio, over the final inliers, of
 //    the loop point's depth in the verified camera to the query's own point's depth.
@@ -73,9 +78,15 @@ struct LoopClosingOptions {
   double guided_radius_px = 8.0;  ///< Search radius of the guided matching [px], > 0.
   int min_inliers = 60;           ///< Inliers after guided matching to accept a loop, >= 3.
   double max_roll_pitch_deg = 2.0;  ///< Inertial maps: largest roll / pitch correction [deg], > 0.
-  PoseGraphOptions pose_graph;      ///< four_dof / seven_dof are set from the map.
-  int strong_covisibility = 100;    ///< Covisibility edges of the essential graph, >= 1.
-  bool fuse = true;                 ///< Fuse the loop's duplicated points after the correction.
+  /// Largest rotation of the query keyframe by the correction [deg], > 0.
+  double max_correction_deg = 20.0;
+  /// Largest move of the query keyframe by the correction, as a share of the path between the
+  /// match and the query keyframes (the keyframes' positions in time order), > 0 ...
+  double max_correction_path_share = 0.2;
+  double min_correction_m = 0.2;  ///< ... plus this in metric maps [m], >= 0.
+  PoseGraphOptions pose_graph;    ///< four_dof / seven_dof are set from the map.
+  int strong_covisibility = 100;  ///< Covisibility edges of the essential graph, >= 1.
+  bool fuse = true;               ///< Fuse the loop's duplicated points after the correction.
   /// Throws OptionError naming the first invalid field (prefix "loop.").
   void validate() const;
   bool operator==(const LoopClosingOptions&) const = default;
@@ -107,8 +118,9 @@ enum class Rejection {
   kNoTransform,    ///< RANSAC or the first motion-only BA found no pose.
   kTooFewInliers,  ///< Fewer than min_inliers after guided matching.
   kTilted,         ///< Inertial map: the correction would change roll / pitch.
+  kBeyondDrift,    ///< The correction is larger than the odometry can have drifted.
 };
-inline constexpr int kRejectionKinds = 4;
+inline constexpr int kRejectionKinds = 5;
 
 /// A loop that passed the geometric verification, not yet applied to the map.
 struct VerifiedLoop {
@@ -189,6 +201,10 @@ class LoopCloser {
   std::optional<VerifiedLoop> verify(const map::Map& map, const map::KeyFrame& query,
                                      map::KeyFrameId candidate, bool inertial,
                                      Rejection& rejection) const;
+  /// Whether moving the query keyframe from T_w_b_old to T_w_b_new stays within what the
+  /// odometry can have drifted since the match keyframe (max_correction_*).
+  bool withinDrift(const map::Map& map, const map::KeyFrame& query, map::KeyFrameId match,
+                   const SE3d& T_w_b_new, bool inertial) const;
   /// False when the query or the match keyframe is gone (nothing changed).
   bool correct(map::Map& map, const VerifiedLoop& loop, bool inertial);
   void fuseLoop(map::Map& map, const VerifiedLoop& loop) const;
