@@ -1,6 +1,7 @@
 #include "superdyna/mapping/local_mapper.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <set>
@@ -196,18 +197,25 @@ BundleAdjustmentResult LocalMapper::globalBundleAdjust(map::Map& map) {
   if (options_.global_ba_iterations == 0) return {};
   const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
   if (ids.size() < 2) return {};
+  const auto start = std::chrono::steady_clock::now();
+  BundleAdjustmentResult result;
   if (initializations_ > 0) {
     const BundleAdjustmentWindow window =
         fullInertialWindow(ids, bias_prior_sigma_gyro_, bias_prior_sigma_acc_);
-    return bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations),
-                        BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
+    result = bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations),
+                          BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
+  } else {
+    BundleAdjustmentWindow window;
+    window.fixed = {ids.front()};
+    window.optimised.assign(ids.begin() + 1, ids.end());
+    // A monocular map's scale gauge: the second keyframe is held too.
+    if (cameras_.size() == 1) window.min_fixed = 2;
+    result = bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations));
   }
-  BundleAdjustmentWindow window;
-  window.fixed = {ids.front()};
-  window.optimised.assign(ids.begin() + 1, ids.end());
-  // A monocular map's scale gauge: the second keyframe is held too.
-  if (cameras_.size() == 1) window.min_fixed = 2;
-  return bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations));
+  ++global_ba_runs_;
+  global_ba_ms_ +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
 }
 
 double LocalMapper::mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const {

@@ -225,7 +225,10 @@ void System::localizeIn(const map::MapFile& file, const std::filesystem::path& n
 }
 
 LoopSummary System::loopSummary() const {
-  return loop_ ? loop_->summary() : LoopSummary{};
+  LoopSummary summary = loop_ ? loop_->summary() : LoopSummary{};
+  summary.global_bas = tracker_.mapper().globalBaRuns();
+  summary.global_ba_ms = tracker_.mapper().globalBaMilliseconds();
+  return summary;
 }
 
 sensors::InstanceMasks System::segment(const sensors::FrameBundle& bundle) {

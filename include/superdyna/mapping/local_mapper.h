@@ -126,6 +126,9 @@ class LocalMapper {
   /// meanwhile keep their poses (ORB-SLAM propagates the global BA's change to them; these
   /// corrections are millimetres, after the pose graph has closed the loop).
   BundleAdjustmentResult globalBundleAdjust(map::Map& map);
+  /// Global BAs run so far and their summed wall time [ms] (read once the mapping jobs are done).
+  int globalBaRuns() const { return global_ba_runs_; }
+  double globalBaMilliseconds() const { return global_ba_ms_; }
 
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return initializations_ > 0; }
@@ -152,6 +155,8 @@ class LocalMapper {
   std::optional<PointTriangulator> triangulator_;
   PointFuser fuser_;
   int initializations_ = 0;  ///< Inertial (re-)initialisations applied to the current map.
+  int global_ba_runs_ = 0;
+  double global_ba_ms_ = 0.0;
   /// The bias prior of the latest full VI BA [rad/s], [m/s^2] (the global BA keeps it).
   double bias_prior_sigma_gyro_ = 0.0;
   double bias_prior_sigma_acc_ = 0.0;

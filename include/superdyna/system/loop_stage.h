@@ -44,6 +44,8 @@ struct LoopSummary {
   std::size_t index_bytes = 0;
   std::size_t index_keyframes = 0;  ///< Keyframes that can receive votes at the end.
   int index_rebuilds = 0;           ///< Rebuilds of the graph index without culled keyframes.
+  int global_bas = 0;               ///< Global BAs after loops (mapping.global_ba_iterations) ...
+  double global_ba_ms = 0.0;        ///< ... and their summed wall time.
 };
 
 class LoopStage final : public tracking::KeyFrameObserver {
