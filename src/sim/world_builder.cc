@@ -259,18 +259,14 @@ class WorldBuilder {
     const int width = std::clamp(static_cast<int>(std::ceil(width_m / texel)), 16, 8192);
     const int height = std::clamp(static_cast<int>(std::ceil(height_m / texel)), 16, 8192);
     const double effective_texel = std::max(width_m / width, height_m / height);
-    Texture texture;
-    if (!options_.photos.empty()) {
-      texture = Texture::fromPhotos(options_.photos, width, height, effective_texel, seed);
-    } else {
-      ProceduralTextureOptions procedural;
-      procedural.width = width;
-      procedural.height = height;
-      procedural.texel_m = effective_texel;
-      procedural.seed = seed;
-      procedural.style = style;
-      texture = Texture::procedural(procedural);
-    }
+    const Texture texture =
+        options_.photos.empty()
+            ? Texture::procedural({.width = width,
+                                   .height = height,
+                                   .texel_m = effective_texel,
+                                   .seed = seed,
+                                   .style = style})
+            : Texture::fromPhotos(options_.photos, width, height, effective_texel, seed);
     if (style == TextureStyle::kVehicle || style == TextureStyle::kPedestrian) return texture;
     return texture.withContrast(options_.background_contrast);
   }
