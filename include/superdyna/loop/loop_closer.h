@@ -201,8 +201,8 @@ class LoopCloser {
   std::optional<VerifiedLoop> verify(const map::Map& map, const map::KeyFrame& query,
                                      map::KeyFrameId candidate, bool inertial,
                                      Rejection& rejection) const;
-  /// Whether moving the query keyframe from T_w_b_old to T_w_b_new stays within what the
-  /// odometry can have drifted since the match keyframe (max_correction_*).
+  /// Whether moving the query keyframe from its pose to T_w_b_new stays within what the odometry
+  /// can have drifted since the match keyframe (max_correction_*).
   bool withinDrift(const map::Map& map, const map::KeyFrame& query, map::KeyFrameId match,
                    const SE3d& T_w_b_new, bool inertial) const;
   /// False when the query or the match keyframe is gone (nothing changed).
