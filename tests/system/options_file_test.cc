@@ -264,6 +264,9 @@ loop:
   guided_radius_px: 6
   min_inliers: 50
   max_roll_pitch_deg: 1.5
+  max_correction_deg: 25
+  max_correction_path_share: 0.3
+  min_correction_m: 0.25
   pose_graph_iterations: 15
   pose_graph_rotation_weight: 2
   strong_covisibility: 80
@@ -299,7 +302,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 238u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 241u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";
