@@ -167,6 +167,11 @@ PatternSpec patternSpec(const MoverPatternOptions& options) {
   return spec;
 }
 
+/// Agents' textures (cars, people); the others are the static world's.
+bool isAgentStyle(TextureStyle style) {
+  return style == TextureStyle::kVehicle || style == TextureStyle::kPedestrian;
+}
+
 class WorldBuilder {
  public:
   WorldBuilder(const WorldOptions& options, const CameraPath& path)
@@ -245,8 +250,7 @@ class WorldBuilder {
   int addTexture(double width_m, double height_m, double texel_m, TextureStyle style,
                  Random& random) {
     const std::uint64_t seed = random.seed();
-    const bool background = style != TextureStyle::kVehicle && style != TextureStyle::kPedestrian;
-    if (background && options_.texture_variety > 0) {
+    if (!isAgentStyle(style) && options_.texture_variety > 0) {
       return sharedTexture(width_m, height_m, texel_m, style, seed);
     }
     world_.scene.textures.push_back(makeTexture(width_m, height_m, texel_m, style, seed));
@@ -267,8 +271,7 @@ class WorldBuilder {
                                    .seed = seed,
                                    .style = style})
             : Texture::fromPhotos(options_.photos, width, height, effective_texel, seed);
-    if (style == TextureStyle::kVehicle || style == TextureStyle::kPedestrian) return texture;
-    return texture.withContrast(options_.background_contrast);
+    return isAgentStyle(style) ? texture : texture.withContrast(options_.background_contrast);
   }
 
   /// One of the `texture_variety` textures that the static surfaces of this style and texel size
