@@ -86,7 +86,7 @@ FeatureSet AlikeExtractor::extract(const cv::Mat& gray) {
   // [1, 3, H, W]: the gray image in all three channels.
   const int H = fit.network.height, W = fit.network.width;
   grayToNetworkInput(fitted, 3, input_);
-  const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
+  const auto outputs = model_.runInPlace({{input_.data(), {1, 3, H, W}}});
   const DenseMap scores =
       denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);
   const DenseMap descriptors =

@@ -24,11 +24,11 @@ void grayToNetworkInput(const cv::Mat& fitted, int channels, std::vector<float>&
   }
 }
 
-DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name,
+DenseMap denseOutputMap(const inference::TensorView& tensor, const std::string& name,
                         cv::Size network_input, const std::filesystem::path& model_file,
                         int stride) {
-  const DenseMap map{tensor.data.data(), static_cast<int>(tensor.dim(1)),
-                     static_cast<int>(tensor.dim(2)), static_cast<int>(tensor.dim(3))};
+  const DenseMap map{tensor.data, static_cast<int>(tensor.shape.at(1)),
+                     static_cast<int>(tensor.shape.at(2)), static_cast<int>(tensor.shape.at(3))};
   if (map.rows * stride != network_input.height || map.cols * stride != network_input.width) {
     throw InputError(
         InputLocation(model_file),

@@ -19,7 +19,7 @@ void grayToNetworkInput(const cv::Mat& fitted, int channels, std::vector<float>&
 
 /// A view of batch item 0 of `tensor` (NCHW); throws InputError naming `model_file` and the output
 /// when its spatial size is not the network input's divided by `stride`.
-DenseMap denseOutputMap(const inference::Tensor& tensor, const std::string& name,
+DenseMap denseOutputMap(const inference::TensorView& tensor, const std::string& name,
                         cv::Size network_input, const std::filesystem::path& model_file,
                         int stride);
 

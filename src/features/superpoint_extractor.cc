@@ -124,7 +124,7 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
 
   const int H = fit.network.height, W = fit.network.width;
   grayToNetworkInput(fitted, input_channels_, input_);
-  const auto outputs = model_.run({{input_.data(), {1, input_channels_, H, W}}});
+  const auto outputs = model_.runInPlace({{input_.data(), {1, input_channels_, H, W}}});
   const DenseMap semi =
       denseOutputMap(outputs[0], options_.scores_output, fit.network, model_.file(), kStride);
   const DenseMap desc =

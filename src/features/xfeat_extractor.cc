@@ -92,7 +92,7 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
   // [1, 3, H, W]: the gray image in all three channels (the network averages them).
   const int H = fit.network.height, W = fit.network.width;
   grayToNetworkInput(fitted, 3, input_);
-  const auto outputs = model_.run({{input_.data(), {1, 3, H, W}}});
+  const auto outputs = model_.runInPlace({{input_.data(), {1, 3, H, W}}});
   const DenseMap descriptors =
       denseOutputMap(outputs[0], options_.descriptors_output, fit.network, model_.file(), kStride);
   const DenseMap logits =

@@ -179,7 +179,13 @@ struct OnnxModel::Impl {
   void checkSignature(const std::vector<ModelSignature>& alternatives);
   /// What keeps the model from fitting the signature (fills input_names/output_names).
   std::optional<std::string> signatureProblem();
+  /// The outputs of the last runInPlace(), alive until the next run.
+  std::vector<Ort::Value> kept_outputs;
+
+  /// Runs the session on checked inputs; returns the outputs, checked against the signature.
+  std::vector<Ort::Value> runSession(const std::vector<TensorView>& inputs);
   std::vector<Tensor> runOnce(const std::vector<TensorView>& inputs);
+  std::vector<TensorView> runKeepingOutputs(const std::vector<TensorView>& inputs);
 };
 
 void OnnxModel::Impl::load() {
@@ -272,7 +278,7 @@ std::optional<std::string> OnnxModel::Impl::signatureProblem() {
   return std::nullopt;
 }
 
-std::vector<Tensor> OnnxModel::Impl::runOnce(const std::vector<TensorView>& inputs) {
+std::vector<Ort::Value> OnnxModel::Impl::runSession(const std::vector<TensorView>& inputs) {
   if (inputs.size() != signature.inputs.size()) {
     throw error(fmt::format("run() got {} input tensor(s), the model takes {}", inputs.size(),
                             signature.inputs.size()));
@@ -317,8 +323,6 @@ std::vector<Tensor> OnnxModel::Impl::runOnce(const std::vector<TensorView>& inpu
   }
   const auto stop = std::chrono::steady_clock::now();
   last_ms = std::chrono::duration<double, std::milli>(stop - start).count();
-
-  std::vector<Tensor> outputs;
   for (std::size_t i = 0; i < results.size(); ++i) {
     const auto info = results[i].GetTensorTypeAndShapeInfo();
     const ElementType type = fromOrt(info.GetElementType());
@@ -326,19 +330,45 @@ std::vector<Tensor> OnnxModel::Impl::runOnce(const std::vector<TensorView>& inpu
       throw error(fmt::format("output '{}' is {}, expected {}", output_names[i], toString(type),
                               toString(signature.outputs[i].type)));
     }
-    Tensor tensor;
-    tensor.shape = info.GetShape();
-    if (const auto why = shapeMismatch(signature.outputs[i], tensor.shape)) {
+    if (const auto why = shapeMismatch(signature.outputs[i], info.GetShape())) {
       throw error(fmt::format("output '{}' for inputs {}: {}", output_names[i], shapes, *why));
     }
+  }
+  return results;
+}
+
+std::vector<Tensor> OnnxModel::Impl::runOnce(const std::vector<TensorView>& inputs) {
+  kept_outputs.clear();
+  const std::vector<Ort::Value> results = runSession(inputs);
+  std::vector<Tensor> outputs;
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    Tensor tensor;
+    tensor.shape = results[i].GetTensorTypeAndShapeInfo().GetShape();
     try {
-      tensor.data = floatValues(results[i], type, elementCount(tensor.shape), output_names[i]);
+      tensor.data = floatValues(results[i], signature.outputs[i].type, elementCount(tensor.shape),
+                                output_names[i]);
     } catch (const InputError& e) {
       throw error(e.what());
     }
     outputs.push_back(std::move(tensor));
   }
   return outputs;
+}
+
+std::vector<TensorView> OnnxModel::Impl::runKeepingOutputs(const std::vector<TensorView>& inputs) {
+  for (std::size_t i = 0; i < signature.outputs.size(); ++i) {
+    if (signature.outputs[i].type != ElementType::kFloat32) {
+      throw error(fmt::format("output '{}' is {}; runInPlace() returns float32 outputs only",
+                              output_names[i], toString(signature.outputs[i].type)));
+    }
+  }
+  kept_outputs.clear();
+  kept_outputs = runSession(inputs);
+  std::vector<TensorView> views;
+  for (const auto& value : kept_outputs) {
+    views.push_back({value.GetTensorData<float>(), value.GetTensorTypeAndShapeInfo().GetShape()});
+  }
+  return views;
 }
 
 OnnxModel::OnnxModel(const fs::path& file, ModelSignature expected, const OnnxModelOptions& options)
@@ -361,6 +391,13 @@ OnnxModel& OnnxModel::operator=(OnnxModel&&) noexcept = default;
 
 std::vector<Tensor> OnnxModel::run(const std::vector<TensorView>& inputs) {
   auto outputs = impl_->runOnce(inputs);
+  impl_->total_ms += impl_->last_ms;
+  ++impl_->runs;
+  return outputs;
+}
+
+std::vector<TensorView> OnnxModel::runInPlace(const std::vector<TensorView>& inputs) {
+  auto outputs = impl_->runKeepingOutputs(inputs);
   impl_->total_ms += impl_->last_ms;
   ++impl_->runs;
   return outputs;

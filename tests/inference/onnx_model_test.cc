@@ -134,6 +134,25 @@ TEST(OnnxModel, LoadsXFeatDescribesItAndRunsWithTiming) {
   EXPECT_EQ(model.runCount(), 2);
 }
 
+TEST(OnnxModel, RunInPlaceViewsTheSameOutputsRunCopies) {
+  SUPERDYNA_REQUIRE_SHARED(xfeat, "models/xfeat.onnx");
+  OnnxModel model(xfeat, xfeatSignature());
+  std::vector<float> input(3 * 64 * 96);
+  for (std::size_t i = 0; i < input.size(); ++i)
+    input[i] = static_cast<float>(i % 89) / 89.0f;
+  const auto copied = model.run({{input.data(), {1, 3, 64, 96}}});
+  const auto viewed = model.runInPlace({{input.data(), {1, 3, 64, 96}}});
+  ASSERT_EQ(viewed.size(), copied.size());
+  for (std::size_t k = 0; k < viewed.size(); ++k) {
+    EXPECT_EQ(viewed[k].shape, copied[k].shape);
+    const std::vector<float> values(viewed[k].data, viewed[k].data + copied[k].data.size());
+    EXPECT_EQ(values, copied[k].data) << "output " << k;
+  }
+  EXPECT_EQ(model.runCount(), 2);
+  // A wrong input is refused as by run().
+  EXPECT_THROW(model.runInPlace({{input.data(), {1, 3, 60, 96}}}), InputError);
+}
+
 TEST(OnnxModel, RejectsInputShapesOutsideTheContract) {
   SUPERDYNA_REQUIRE_SHARED(xfeat, "models/xfeat.onnx");
   OnnxModel model(xfeat, xfeatSignature());

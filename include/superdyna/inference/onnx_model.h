@@ -84,6 +84,14 @@ class OnnxModel {
   /// (lastRunMs(), meanRunMs()).
   std::vector<Tensor> run(const std::vector<TensorView>& inputs);
 
+  /// As run() for a model whose outputs are all float32, without copying them: the views point
+  /// into ONNX Runtime's output buffers, which the model keeps until its next run() or
+  /// runInPlace() (or its destruction). For networks with large dense outputs: copying ALIKE's
+  /// full-resolution descriptor map (94 MB at 768x480) into a fresh buffer per image made glibc
+  /// map and unmap that much memory per run and slowed the network itself about fivefold on the
+  /// development machine, where page faults are expensive. InputError for a non-float32 output.
+  std::vector<TensorView> runInPlace(const std::vector<TensorView>& inputs);
+
   /// Runs the model `runs` times on zero-filled inputs of the given shapes without counting the
   /// runs in the timing: ONNX Runtime allocates and plans on the first run of a shape.
   void warmUp(const std::vector<std::vector<std::int64_t>>& input_shapes, int runs = 1);
