@@ -9,13 +9,17 @@
 # three with the simulator's procedural textures.
 # Usage: bench/robustness.sh OUT_DIR [CONFIG ...]
 #   OUT_DIR  sequences (kept between runs: delete to regenerate), trajectories, logs, results.md
+#            (one row per run) and summary.md (per sequence and config: median over the seeds)
 #   CONFIG   default: configs/euroc_stereo_inertial.yaml configs/euroc_stereo_inertial_xfeat.yaml
 # Environment: SHARED (default ../shared beside the repository), SUPERDYNA_MODEL_DIR (default
-# SHARED/models), BUILD (default build). Takes about 25 minutes on 2 cores for two configs.
+# SHARED/models), BUILD (default build), SEED_OFFSETS (default "0": each offset k adds k to
+# every sequence's simulator seed, so "0 1 2" runs three versions of each sequence; single runs
+# on dim, blurred sequences are chaotic). Takes about 25 minutes on 2 cores for two configs and
+# one seed. bench/robustness_summary.sh RESULTS.md ... summarises the rows of several OUT_DIRs.
 set -euo pipefail
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 if [ $# -lt 1 ]; then
-  sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,18p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   exit 1
 fi
 out=$(mkdir -p "$1" && cd "$1" && pwd)
@@ -59,12 +63,24 @@ sequences=(
 
 results=$out/results.md
 {
-  echo "| sequence | config | lost / resets | from reference | ATE RMSE [m] | match median [px] | > 5 px |"
-  echo "|---|---|---|---|---|---|---|"
+  echo "| sequence | seed | config | lost / resets | from reference | ATE RMSE [m] | match median [px] | > 5 px |"
+  echo "|---|---|---|---|---|---|---|---|"
 } >"$results"
-for entry in "${sequences[@]}"; do
-  name=${entry%%|*}
+read -r -a seed_offsets <<<"${SEED_OFFSETS:-0}"
+runs=()
+for offset in "${seed_offsets[@]}"; do
+  [[ $offset =~ ^[0-9]+$ ]] || { echo "SEED_OFFSETS: '$offset' is not a non-negative integer" >&2; exit 2; }
+  for entry in "${sequences[@]}"; do runs+=("$offset|$entry"); done
+done
+for run in "${runs[@]}"; do
+  offset=${run%%|*}
+  entry=${run#*|}
+  base=${entry%%|*}
   options=${entry#*|}
+  seed=$(($(echo "$options" | sed -E 's/.*--seed ([0-9]+).*/\1/') + offset))
+  options=$(echo "$options" | sed -E "s/--seed [0-9]+/--seed $seed/")
+  name=$base
+  [ "$offset" = 0 ] || name=${base}_seed$seed
   seq=$out/$name
   if [ ! -f "$seq/mav0/state_groundtruth_estimate0/data.csv" ]; then
     rm -rf "$seq"
@@ -88,8 +104,9 @@ for entry in "${sequences[@]}"; do
     match=$("$accuracy" "$seq" "$config" 2>/dev/null | grep -E '^matches')
     median=$(echo "$match" | sed -E 's/.*median ([0-9.]+).*/\1/')
     wrong=$(echo "$match" | sed -E 's/.*>5px ([0-9.]+%).*/\1/')
-    echo "| $name | $tag | $lost | $reference | $ate | $median | $wrong |" >>"$results"
+    echo "| $base | $seed | $tag | $lost | $reference | $ate | $median | $wrong |" >>"$results"
   done
 done
 echo
 cat "$results"
+"$repo/bench/robustness_summary.sh" "$results" | tee "$out/summary.md"

@@ -61,8 +61,7 @@ FeatureSet scoredPixelsToFeatures(const std::vector<ScoredPixel>& points,
   features.image_size = image_size;
   features.descriptors = sampleDescriptors(descriptor_map, pixels, stride);
   features.keypoints.reserve(points.size());
-  const float size =
-      static_cast<float>(stride * fit.original.width) / static_cast<float>(fit.network.width);
+  const float size = static_cast<float>(stride * fit.pixelScale().x());
   for (std::size_t i = 0; i < points.size(); ++i) {
     Keypoint kp;
     kp.pixel = fit.toOriginal(pixels[i]);

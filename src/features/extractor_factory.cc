@@ -20,6 +20,7 @@ XFeatOptions xfeatOptions(const FeatureOptions& options) {
   }
   if (options.nms_radius_px >= 0) xfeat.nms_window = 2 * options.nms_radius_px + 1;
   xfeat.grid_cell_px = options.grid_cell_px;
+  xfeat.input_scale = options.input_scale;
   xfeat.subpixel_radius = options.subpixel_radius_px;
   xfeat.runtime.intra_op_threads = options.inference_threads;
   return xfeat;
@@ -34,6 +35,7 @@ SuperPointOptions superPointOptions(const FeatureOptions& options) {
   }
   if (options.nms_radius_px >= 0) superpoint.nms_radius = options.nms_radius_px;
   superpoint.grid_cell_px = options.grid_cell_px;
+  superpoint.input_scale = options.input_scale;
   superpoint.runtime.intra_op_threads = options.inference_threads;
   return superpoint;
 }
@@ -47,6 +49,7 @@ AlikeOptions alikeOptions(const FeatureOptions& options) {
   }
   if (options.nms_radius_px >= 1) alike.radius = options.nms_radius_px;
   alike.grid_cell_px = options.grid_cell_px;
+  alike.input_scale = options.input_scale;
   alike.runtime.intra_op_threads = options.inference_threads;
   return alike;
 }
@@ -103,6 +106,10 @@ void FeatureOptions::validate() const {
   }
   if (grid_cell_px < 0) {
     throw OptionError("features.grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
+  }
+  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
+    throw OptionError("features.input_scale",
+                      fmt::format("must be in (0, 1], got {}", input_scale));
   }
   if (subpixel_radius_px < 0) {
     throw OptionError("features.subpixel_radius_px",

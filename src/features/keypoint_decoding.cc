@@ -324,40 +324,55 @@ std::vector<float> normalizeCells(const DenseMap& map) {
   return out;
 }
 
-Eigen::Vector2d ImageFit::toOriginal(const Eigen::Vector2d& network_pixel) const {
-  if (mode == FitMode::kPad) return network_pixel;
-  const Eigen::Array2d scale(static_cast<double>(original.width) / network.width,
-                             static_cast<double>(original.height) / network.height);
-  return ((network_pixel.array() + 0.5) * scale - 0.5).matrix();
+Eigen::Array2d ImageFit::pixelScale() const {
+  return {static_cast<double>(original.width) / content.width,
+          static_cast<double>(original.height) / content.height};
 }
 
-ImageFit planFit(cv::Size original, int multiple, FitMode mode) {
+Eigen::Vector2d ImageFit::toOriginal(const Eigen::Vector2d& network_pixel) const {
+  if (content == original) return network_pixel;
+  return ((network_pixel.array() + 0.5) * pixelScale() - 0.5).matrix();
+}
+
+ImageFit planFit(cv::Size original, int multiple, FitMode mode, double scale) {
   if (multiple < 1)
     throw OptionError("size multiple", fmt::format("must be >= 1, got {}", multiple));
+  if (!(scale > 0.0 && scale <= 1.0))
+    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", scale));
   if (original.width <= 0 || original.height <= 0) {
     throw InputError(fmt::format("empty image ({}x{})", original.width, original.height));
   }
-  const auto fit = [&](int side) {
-    if (mode == FitMode::kPad) return (side + multiple - 1) / multiple * multiple;
-    return std::max(multiple, side / multiple * multiple);
+  const auto scaled = [&](int side) {
+    return std::max(1, static_cast<int>(std::lround(side * scale)));
   };
-  return ImageFit{mode, original, cv::Size(fit(original.width), fit(original.height))};
+  const cv::Size content(scaled(original.width), scaled(original.height));
+  if (mode == FitMode::kPad) {
+    const auto up = [&](int side) { return (side + multiple - 1) / multiple * multiple; };
+    return ImageFit{mode, original, content, cv::Size(up(content.width), up(content.height))};
+  }
+  const auto down = [&](int side) { return std::max(multiple, side / multiple * multiple); };
+  const cv::Size network(down(content.width), down(content.height));
+  return ImageFit{mode, original, network, network};
 }
 
 cv::Mat applyFit(const cv::Mat& gray, const ImageFit& fit) {
   CV_Assert(gray.size() == fit.original);
   if (fit.network == fit.original) return gray;
-  cv::Mat out;
-  if (fit.mode == FitMode::kPad) {
-    const int right = fit.network.width - fit.original.width;
-    const int bottom = fit.network.height - fit.original.height;
-    // Reflection needs the pad to be smaller than the image; replicate beyond that.
-    const int border =
-        (right < gray.cols && bottom < gray.rows) ? cv::BORDER_REFLECT_101 : cv::BORDER_REPLICATE;
-    cv::copyMakeBorder(gray, out, 0, bottom, 0, right, border);
-  } else {
+  if (fit.mode == FitMode::kResize) {
+    cv::Mat out;
     cv::resize(gray, out, fit.network, 0.0, 0.0, cv::INTER_LINEAR);
+    return out;
   }
+  cv::Mat scaled = gray;
+  // Area averaging for a smaller image: no aliasing of fine texture into false corners.
+  if (fit.content != fit.original) cv::resize(gray, scaled, fit.content, 0.0, 0.0, cv::INTER_AREA);
+  const int right = fit.network.width - fit.content.width;
+  const int bottom = fit.network.height - fit.content.height;
+  // Reflection needs the pad to be smaller than the image; replicate beyond that.
+  const int border =
+      (right < scaled.cols && bottom < scaled.rows) ? cv::BORDER_REFLECT_101 : cv::BORDER_REPLICATE;
+  cv::Mat out;
+  cv::copyMakeBorder(scaled, out, 0, bottom, 0, right, border);
   return out;
 }
 

@@ -71,6 +71,9 @@ void SuperPointOptions::validate() const {
   if (grid_cell_px < 0) {
     throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
+  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
+    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", input_scale));
+  }
   if (size_multiple < kStride || size_multiple % kStride != 0) {
     throw OptionError("size_multiple", fmt::format("must be a positive multiple of {}, got {}",
                                                    kStride, size_multiple));
@@ -109,7 +112,8 @@ SuperPointExtractor::SuperPointExtractor(const SuperPointOptions& options)
   size_multiple_ = effectiveSizeMultiple(options_, model_);
   input_channels_ = inputChannelsOf(model_);
   if (!options_.warmup_size.empty()) {
-    const auto fit = planFit(options_.warmup_size, size_multiple_, options_.fit);
+    const auto fit =
+        planFit(options_.warmup_size, size_multiple_, options_.fit, options_.input_scale);
     model_.warmUp({{1, input_channels_, fit.network.height, fit.network.width}});
   }
 }
@@ -119,7 +123,7 @@ FeatureSet SuperPointExtractor::extract(const cv::Mat& gray) {
     throw InputError("SuperPoint needs a non-empty 8-bit grayscale image (CV_8UC1)");
   }
   const auto start = std::chrono::steady_clock::now();
-  const ImageFit fit = planFit(gray.size(), size_multiple_, options_.fit);
+  const ImageFit fit = planFit(gray.size(), size_multiple_, options_.fit, options_.input_scale);
   const cv::Mat fitted = applyFit(gray, fit);
 
   const int H = fit.network.height, W = fit.network.width;

@@ -42,6 +42,9 @@ void XFeatOptions::validate() const {
   if (grid_cell_px < 0) {
     throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
+  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
+    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", input_scale));
+  }
   if (warmup_size.width < 0 || warmup_size.height < 0) {
     throw OptionError("warmup_size", "must not be negative");
   }
@@ -76,7 +79,8 @@ inference::ModelSignature XFeatExtractor::signature(const XFeatOptions& options)
 XFeatExtractor::XFeatExtractor(const XFeatOptions& options)
     : options_(options), model_(loadModel(options)) {
   if (!options_.warmup_size.empty()) {
-    const auto fit = planFit(options_.warmup_size, kSizeMultiple, options_.fit);
+    const auto fit =
+        planFit(options_.warmup_size, kSizeMultiple, options_.fit, options_.input_scale);
     model_.warmUp({{1, 3, fit.network.height, fit.network.width}});
   }
 }
@@ -86,7 +90,7 @@ FeatureSet XFeatExtractor::extract(const cv::Mat& gray) {
     throw InputError("XFeat needs a non-empty 8-bit grayscale image (CV_8UC1)");
   }
   const auto start = std::chrono::steady_clock::now();
-  const ImageFit fit = planFit(gray.size(), kSizeMultiple, options_.fit);
+  const ImageFit fit = planFit(gray.size(), kSizeMultiple, options_.fit, options_.input_scale);
   const cv::Mat fitted = applyFit(gray, fit);
 
   // [1, 3, H, W]: the gray image in all three channels (the network averages them).

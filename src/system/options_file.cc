@@ -143,6 +143,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"detection_threshold", &f.features.detection_threshold},
         {"nms_radius_px", &f.features.nms_radius_px},
         {"grid_cell_px", &f.features.grid_cell_px},
+        {"input_scale", &f.features.input_scale},
         {"subpixel_radius_px", &f.features.subpixel_radius_px},
         {"inference_threads", &f.features.inference_threads},
         {"class_wise_matching", &f.features.class_wise_matching},

@@ -115,5 +115,37 @@ TEST(AlikeExtractorTest, ShippedVariantsFindTheSameKeypointsInAShiftedImage) {
   }
 }
 
+TEST(AlikeExtractorTest, AHalfScaleInputGivesKeypointsInFullResolutionPixels) {
+  SUPERDYNA_REQUIRE_SHARED(model, "models/alike-t.onnx");
+  const cv::Mat image = syntheticImage(384, 320, 9);
+  AlikeOptions full_options;
+  full_options.model = model.string();
+  full_options.max_keypoints = 300;
+  AlikeOptions half_options = full_options;
+  half_options.input_scale = 0.5;
+  AlikeExtractor full(full_options), half(half_options);
+  const FeatureSet f = full.extract(image), h = half.extract(image);
+  h.validate();
+  ASSERT_GT(h.size(), 100u);
+  // Every half-scale keypoint lies in the full image, most within 1.5 px of a full-scale one
+  // (a wrong mapping back, e.g. half-scale pixels taken as full ones, finds almost none).
+  std::size_t near = 0;
+  for (const Keypoint& k : h.keypoints) {
+    ASSERT_GE(k.pixel.x(), 0.0);
+    ASSERT_LT(k.pixel.x(), 384.0);
+    ASSERT_LT(k.pixel.y(), 320.0);
+    double best = 1e9;
+    for (const Keypoint& o : f.keypoints)
+      best = std::min(best, (o.pixel - k.pixel).norm());
+    if (best <= 1.5) ++near;
+  }
+  std::cout << near << " of " << h.size()
+            << " half-scale keypoints within 1.5 px of a full-scale one\n";
+  EXPECT_GT(static_cast<double>(near), 0.4 * static_cast<double>(h.size()));
+  AlikeOptions bad = full_options;
+  bad.input_scale = 0.0;
+  test::expectError<OptionError>([&] { AlikeExtractor{bad}; }, {"input_scale"});
+}
+
 }  // namespace
 }  // namespace superdyna::features

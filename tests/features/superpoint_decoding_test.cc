@@ -292,5 +292,33 @@ TEST(KeypointDecoding, FitsImagesByPaddingOrResizingAndMapsPixelsBack) {
   EXPECT_EQ(padded.at<std::uint8_t>(2, 3), image.at<std::uint8_t>(2, 3));  // unchanged inside
 }
 
+TEST(KeypointDecoding, AScaledFitMapsPixelCentresBackToTheFullImage) {
+  const ImageFit half = planFit({752, 480}, 32, FitMode::kPad, 0.5);
+  EXPECT_EQ(half.content, cv::Size(376, 240));
+  EXPECT_EQ(half.network, cv::Size(384, 256));
+  EXPECT_EQ(half.valid(), cv::Size(376, 240));
+  // Network pixel 0 covers original pixels 0 and 1: its centre is 0.5; pixel 187 covers 374, 375.
+  EXPECT_NEAR(half.toOriginal({0.0, 0.0}).x(), 0.5, 1e-12);
+  EXPECT_NEAR(half.toOriginal({187.0, 119.0}).x(), 374.5, 1e-12);
+  EXPECT_NEAR(half.toOriginal({187.0, 119.0}).y(), 238.5, 1e-12);
+  EXPECT_EQ(half.pixelScale().x(), 2.0);
+  const ImageFit resized = planFit({752, 480}, 32, FitMode::kResize, 0.5);
+  EXPECT_EQ(resized.network, cv::Size(352, 224));
+  EXPECT_EQ(resized.valid(), resized.network);
+  expectError<OptionError>([] { planFit({10, 10}, 8, FitMode::kPad, 0.0); }, {"input_scale"});
+  expectError<OptionError>([] { planFit({10, 10}, 8, FitMode::kPad, 1.5); }, {"input_scale"});
+
+  // A bright 2x2 block at original pixels (10..11, 6..7) is one pixel at (5, 3) of the half
+  // image, and maps back onto the block's centre.
+  cv::Mat image(16, 24, CV_8UC1, cv::Scalar(0));
+  image(cv::Rect(10, 6, 2, 2)).setTo(200);
+  const ImageFit fit = planFit(image.size(), 8, FitMode::kPad, 0.5);
+  const cv::Mat small = applyFit(image, fit);
+  ASSERT_EQ(small.size(), cv::Size(16, 8));
+  EXPECT_EQ(small.at<std::uint8_t>(3, 5), 200);
+  EXPECT_EQ(small.at<std::uint8_t>(3, 4), 0);
+  EXPECT_EQ(fit.toOriginal({5.0, 3.0}), Eigen::Vector2d(10.5, 6.5));
+}
+
 }  // namespace
 }  // namespace superdyna::features

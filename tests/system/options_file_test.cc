@@ -28,6 +28,7 @@ constexpr const char* kNonDefaultOptions = R"(features:
   detection_threshold: 0.02
   nms_radius_px: 3
   grid_cell_px: 16
+  input_scale: 0.75
   subpixel_radius_px: 2
   inference_threads: 2
   class_wise_matching: false
@@ -302,7 +303,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 241u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 242u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

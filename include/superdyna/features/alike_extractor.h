@@ -40,7 +40,10 @@ struct AlikeOptions {
   float temperature = 0.1f;      ///< Soft-argmax temperature, > 0.
   int grid_cell_px = 0;          ///< Spread the top-K over cells of this side [px]; 0: off.
   FitMode fit = FitMode::kPad;   ///< How images are brought to multiples of 32.
-  cv::Size warmup_size;          ///< Warm-up image size at construction (empty: none).
+  /// The image is scaled by this factor, in (0, 1], before the network sees it (keypoints are
+  /// returned in the original image's pixels): fewer pixels, a faster network.
+  double input_scale = 1.0;
+  cv::Size warmup_size;  ///< Warm-up image size at construction (empty: none).
   /// Output names (the input is taken by position).
   std::string scores_output = "scores_map";
   std::string descriptors_output = "descriptor_map";

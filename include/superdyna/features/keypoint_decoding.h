@@ -126,20 +126,25 @@ enum class FitMode {
 struct ImageFit {
   FitMode mode = FitMode::kPad;
   cv::Size original;
+  /// The image as the network sees it before padding: `original` scaled by the input scale
+  /// (planFit), or the whole network input when resizing.
+  cv::Size content;
   cv::Size network;  ///< Network input size, sides multiples of the required number.
 
-  /// Network-input region holding image content: [0, width) x [0, height) of `original` when
-  /// padding, the whole input when resizing.
-  cv::Size valid() const { return mode == FitMode::kPad ? original : network; }
-  /// Original-image pixel of a network-input pixel (identity when padding; pixel centres
-  /// mapped onto pixel centres when resizing: (p + 0.5) * scale - 0.5).
+  /// Network-input region holding image content: [0, width) x [0, height).
+  cv::Size valid() const { return content; }
+  /// Original-image pixels per network-input pixel, per axis (1 when padding an unscaled image).
+  Eigen::Array2d pixelScale() const;
+  /// Original-image pixel of a network-input pixel: pixel centres mapped onto pixel centres,
+  /// (p + 0.5) * pixelScale() - 0.5 (the identity when padding an unscaled image).
   Eigen::Vector2d toOriginal(const Eigen::Vector2d& network_pixel) const;
 };
 
-/// The fit of an image of size `original` for sides that must be multiples of `multiple`
-/// (padding: rounded up; resizing: rounded down, at least `multiple`). Throws OptionError when
-/// multiple < 1 and InputError for an empty size.
-ImageFit planFit(cv::Size original, int multiple, FitMode mode);
+/// The fit of an image of size `original` for sides that must be multiples of `multiple`:
+/// the image is first scaled by `scale` (in (0, 1]; sides rounded to the nearest pixel), then
+/// padded (sides rounded up) or resized (rounded down, at least `multiple`). Throws OptionError
+/// when multiple < 1 or scale is outside (0, 1], InputError for an empty size.
+ImageFit planFit(cv::Size original, int multiple, FitMode mode, double scale = 1.0);
 
 /// The 8-bit image brought to fit.network as `fit` says.
 cv::Mat applyFit(const cv::Mat& gray, const ImageFit& fit);

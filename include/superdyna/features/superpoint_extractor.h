@@ -46,6 +46,9 @@ struct SuperPointOptions {
   /// and a multiple of 8.
   int size_multiple = 8;
   FitMode fit = FitMode::kPad;
+  /// The image is scaled by this factor, in (0, 1], before the network sees it (keypoints are
+  /// returned in the original image's pixels): fewer pixels, a faster network.
+  double input_scale = 1.0;
   cv::Size warmup_size;  ///< Warm-up image size at construction (empty: none).
   /// Output names (the input is taken by position).
   std::string scores_output = "semi";

@@ -45,6 +45,9 @@ struct XFeatOptions {
   /// maximum (keypoint_decoding.h: refineSubpixel), >= 0; 0 keeps the integer pixels.
   int subpixel_radius = 0;
   FitMode fit = FitMode::kPad;  ///< How images are brought to multiples of 32.
+  /// The image is scaled by this factor, in (0, 1], before the network sees it (keypoints are
+  /// returned in the original image's pixels): fewer pixels, a faster network.
+  double input_scale = 1.0;
   /// Warm the network up for images of this size at construction (empty: no warm-up).
   cv::Size warmup_size;
   /// Tensor names: the input is taken by position; outputs by these names (other exports of the
