@@ -87,9 +87,10 @@ class OnnxModel {
   /// As run() for a model whose outputs are all float32, without copying them: the views point
   /// into ONNX Runtime's output buffers, which the model keeps until its next run() or
   /// runInPlace() (or its destruction). For networks with large dense outputs: copying ALIKE's
-  /// full-resolution descriptor map (94 MB at 768x480) into a fresh buffer per image made glibc
-  /// map and unmap that much memory per run and slowed the network itself about fivefold on the
-  /// development machine, where page faults are expensive. InputError for a non-float32 output.
+  /// full-resolution descriptor map (94 MB at 768x480) into a freshly allocated buffer per image
+  /// (mapped and unmapped by glibc in the pipeline's threads, page-faulted in on every run) made
+  /// ALIKE-t take 473 ms per image in the concurrent stereo pipeline, 129 ms without the copy.
+  /// InputError for a non-float32 output.
   std::vector<TensorView> runInPlace(const std::vector<TensorView>& inputs);
 
   /// Runs the model `runs` times on zero-filled inputs of the given shapes without counting the
