@@ -83,13 +83,15 @@ for run in "${runs[@]}"; do
   [ "$offset" = 0 ] || name=${base}_seed$seed
   seq=$out/$name
   if [ ! -f "$seq/mav0/state_groundtruth_estimate0/data.csv" ]; then
-    rm -rf "$seq"
+    rm -rf "$seq" "$seq.partial"
     echo "simulating $name"
     case "$options" in *--trajectory*) motion=() ;; *) motion=(--trajectory "$trajectories/V1_03_difficult.txt") ;; esac
+    # Into a .partial folder first: an interrupted simulation is not taken for a sequence later.
     # shellcheck disable=SC2086
-    "$superdyna" simulate --out "$seq" --scene indoor --dynamic none --start 10 "${motion[@]}" \
+    "$superdyna" simulate --out "$seq.partial" --scene indoor --dynamic none --start 10 "${motion[@]}" \
       $options >"$out/simulate_$name.log" 2>&1 ||
       { echo "simulation of $name failed, see $out/simulate_$name.log" >&2; exit 1; }
+    mv "$seq.partial" "$seq"
   fi
   for config in "${configs[@]}"; do
     tag=$(basename "$config" .yaml)
@@ -100,7 +102,8 @@ for run in "${runs[@]}"; do
       >"$log" 2>&1 || { echo "run failed, see $log" >&2; exit 1; }
     lost=$(grep -E '^[0-9]+ frames in' "$log" | sed -E 's/.*lost frames ([0-9]+), map resets ([0-9]+).*/\1 \/ \2/')
     reference=$(grep -E 'reference keyframe' "$log" | sed -E 's/.*: //')
-    ate=$(grep -E '^ATE' "$log" | head -1 | sed -E 's/.*rmse ([0-9.]+) m.*/\1/')
+    # The trajectory written (--output), not "ATE of the poses as tracked".
+    ate=$(grep -E '^ATE \(' "$log" | head -1 | sed -E 's/.*rmse ([0-9.]+) m.*/\1/')
     match=$("$accuracy" "$seq" "$config" 2>/dev/null | grep -E '^matches')
     median=$(echo "$match" | sed -E 's/.*median ([0-9.]+).*/\1/')
     wrong=$(echo "$match" | sed -E 's/.*>5px ([0-9.]+%).*/\1/')

@@ -38,9 +38,7 @@ void AlikeOptions::validate() const {
   if (grid_cell_px < 0) {
     throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
-  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
-    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", input_scale));
-  }
+  checkInputScale(input_scale);
   if (warmup_size.width < 0 || warmup_size.height < 0) {
     throw OptionError("warmup_size", "must not be negative");
   }

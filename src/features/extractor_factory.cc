@@ -4,6 +4,7 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/features/alike_extractor.h"
+#include "superdyna/features/keypoint_decoding.h"
 #include "superdyna/features/superpoint_extractor.h"
 #include "superdyna/features/xfeat_extractor.h"
 
@@ -107,10 +108,7 @@ void FeatureOptions::validate() const {
   if (grid_cell_px < 0) {
     throw OptionError("features.grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
-  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
-    throw OptionError("features.input_scale",
-                      fmt::format("must be in (0, 1], got {}", input_scale));
-  }
+  checkInputScale(input_scale, "features.input_scale");
   if (subpixel_radius_px < 0) {
     throw OptionError("features.subpixel_radius_px",
                       fmt::format("must be >= 0, got {}", subpixel_radius_px));

@@ -334,11 +334,15 @@ Eigen::Vector2d ImageFit::toOriginal(const Eigen::Vector2d& network_pixel) const
   return ((network_pixel.array() + 0.5) * pixelScale() - 0.5).matrix();
 }
 
+void checkInputScale(double scale, const std::string& key) {
+  if (!(scale > 0.0 && scale <= 1.0))
+    throw OptionError(key, fmt::format("must be in (0, 1], got {}", scale));
+}
+
 ImageFit planFit(cv::Size original, int multiple, FitMode mode, double scale) {
   if (multiple < 1)
     throw OptionError("size multiple", fmt::format("must be >= 1, got {}", multiple));
-  if (!(scale > 0.0 && scale <= 1.0))
-    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", scale));
+  checkInputScale(scale);
   if (original.width <= 0 || original.height <= 0) {
     throw InputError(fmt::format("empty image ({}x{})", original.width, original.height));
   }

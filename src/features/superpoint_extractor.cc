@@ -71,9 +71,7 @@ void SuperPointOptions::validate() const {
   if (grid_cell_px < 0) {
     throw OptionError("grid_cell_px", fmt::format("must be >= 0, got {}", grid_cell_px));
   }
-  if (!(input_scale > 0.0 && input_scale <= 1.0)) {
-    throw OptionError("input_scale", fmt::format("must be in (0, 1], got {}", input_scale));
-  }
+  checkInputScale(input_scale);
   if (size_multiple < kStride || size_multiple % kStride != 0) {
     throw OptionError("size_multiple", fmt::format("must be a positive multiple of {}, got {}",
                                                    kStride, size_multiple));

@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 namespace superdyna::features {
@@ -139,6 +140,9 @@ struct ImageFit {
   /// (p + 0.5) * pixelScale() - 0.5 (the identity when padding an unscaled image).
   Eigen::Vector2d toOriginal(const Eigen::Vector2d& network_pixel) const;
 };
+
+/// Throws OptionError naming `key` unless 0 < scale <= 1 (an input scale of planFit).
+void checkInputScale(double scale, const std::string& key = "input_scale");
 
 /// The fit of an image of size `original` for sides that must be multiples of `multiple`:
 /// the image is first scaled by `scale` (in (0, 1]; sides rounded to the nearest pixel), then
