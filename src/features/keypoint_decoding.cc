@@ -361,7 +361,7 @@ ImageFit planFit(cv::Size original, int multiple, FitMode mode, double scale) {
 
 cv::Mat applyFit(const cv::Mat& gray, const ImageFit& fit) {
   CV_Assert(gray.size() == fit.original);
-  if (fit.network == fit.original) return gray;
+  if (fit.content == fit.original && fit.network == fit.original) return gray;
   if (fit.mode == FitMode::kResize) {
     cv::Mat out;
     cv::resize(gray, out, fit.network, 0.0, 0.0, cv::INTER_LINEAR);

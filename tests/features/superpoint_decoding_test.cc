@@ -318,6 +318,16 @@ TEST(KeypointDecoding, AScaledFitMapsPixelCentresBackToTheFullImage) {
   EXPECT_EQ(small.at<std::uint8_t>(3, 5), 200);
   EXPECT_EQ(small.at<std::uint8_t>(3, 4), 0);
   EXPECT_EQ(fit.toOriginal({5.0, 3.0}), Eigen::Vector2d(10.5, 6.5));
+
+  // Scaled and padded back to the original size: still scaled, not the image as it was.
+  cv::Mat ramp(32, 64, CV_8UC1);
+  for (int x = 0; x < 64; ++x)
+    ramp.col(x).setTo(x * 4);
+  const ImageFit same_size = planFit(ramp.size(), 32, FitMode::kPad, 0.9);
+  ASSERT_EQ(same_size.network, ramp.size());
+  EXPECT_EQ(same_size.content, cv::Size(58, 29));
+  const cv::Mat refitted = applyFit(ramp, same_size);
+  EXPECT_GT(cv::norm(refitted, ramp, cv::NORM_INF), 8.0);
 }
 
 }  // namespace
