@@ -173,6 +173,11 @@ struct OnnxModel::Impl {
   int runs = 0;
 
   InputError error(const std::string& what) const { return InputError(InputLocation(file), what); }
+  /// Adds the last run to the timing (warm-up runs are not counted).
+  void countLastRun() {
+    total_ms += last_ms;
+    ++runs;
+  }
 
   void load();
   /// Takes the first of `alternatives` the model fits; InputError with every distinct problem.
@@ -362,7 +367,7 @@ std::vector<TensorView> OnnxModel::Impl::runKeepingOutputs(const std::vector<Ten
                               output_names[i], toString(signature.outputs[i].type)));
     }
   }
-  kept_outputs.clear();
+  kept_outputs.clear();  // released before the run, so that ONNX Runtime can reuse their memory
   kept_outputs = runSession(inputs);
   std::vector<TensorView> views;
   for (const auto& value : kept_outputs) {
@@ -391,15 +396,13 @@ OnnxModel& OnnxModel::operator=(OnnxModel&&) noexcept = default;
 
 std::vector<Tensor> OnnxModel::run(const std::vector<TensorView>& inputs) {
   auto outputs = impl_->runOnce(inputs);
-  impl_->total_ms += impl_->last_ms;
-  ++impl_->runs;
+  impl_->countLastRun();
   return outputs;
 }
 
 std::vector<TensorView> OnnxModel::runInPlace(const std::vector<TensorView>& inputs) {
   auto outputs = impl_->runKeepingOutputs(inputs);
-  impl_->total_ms += impl_->last_ms;
-  ++impl_->runs;
+  impl_->countLastRun();
   return outputs;
 }
 
