@@ -1,19 +1,17 @@
 #include "superdyna/optim/pose_optimizer.h"
 
-#include <spdlog/spdlog.h>
-
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "superdyna/core/error.h"
 #include "superdyna/optim/imu_factors.h"
-#include "superdyna/optim/se3_manifold.h"
-#include "superdyna/optim/solver_options.h"
+#include "superdyna/optim/pose_least_squares.h"
 
 namespace superdyna::optim {
 
@@ -113,37 +111,25 @@ SE3d PoseOptimizer::optimizeOnce(const SE3d& T_w_b, const std::vector<Reprojecti
                                  const std::vector<PoseObservation>& observations,
                                  const std::vector<bool>& use, bool robust,
                                  const std::optional<PosePrior>& prior) const {
-  PoseBlock pose = toPoseBlock(T_w_b);
-  const SE3d T_w_b_start = fromPoseBlock(pose.data());
-  std::vector<std::array<double, 3>> points(observations.size());
-  ceres::Problem problem;
-  problem.AddParameterBlock(pose.data(), kPoseBlockSize, new SE3Manifold());
+  std::vector<std::unique_ptr<ceres::CostFunction>> factors;
+  std::vector<PoseTerm> terms;
   for (std::size_t i = 0; i < observations.size(); ++i) {
     if (!use[i]) continue;
     const PoseObservation& observation = observations[i];
-    // Ceres abandons the whole solve when a residual cannot be evaluated at the initial pose.
-    if (!std::isfinite(chi2(observation, cameras[observation.camera], T_w_b_start))) continue;
-    Eigen::Map<Eigen::Vector3d>(points[i].data()) = observation.p_w;
-    problem.AddParameterBlock(points[i].data(), 3);
-    problem.SetParameterBlockConstant(points[i].data());
-    ceres::LossFunction* loss = robust ? newHuberLoss(chi2Threshold(observation)) : nullptr;
-    problem.AddResidualBlock(newCostFunction(observation, cameras[observation.camera]), loss,
-                             pose.data(), points[i].data());
+    // A residual that cannot be evaluated at the start (behind the camera) is left out.
+    if (!std::isfinite(chi2(observation, cameras[observation.camera], T_w_b))) continue;
+    factors.emplace_back(newCostFunction(observation, cameras[observation.camera]));
+    const double huber_delta = robust ? std::sqrt(chi2Threshold(observation)) : 0.0;
+    terms.push_back({factors.back().get(), observation.p_w.data(), huber_delta});
   }
   if (prior) {
-    problem.AddResidualBlock(new PosePriorFactor(prior->T_w_b, priorCovariance(*prior)), nullptr,
-                             pose.data());
+    factors.push_back(std::make_unique<PosePriorFactor>(prior->T_w_b, priorCovariance(*prior)));
+    terms.push_back({factors.back().get(), nullptr, 0.0});
   }
-  if (problem.NumResidualBlocks() == 0) return T_w_b;
-  ceres::Solver::Summary summary;
-  ceres::Solve(quietSolverOptions(ceres::DENSE_QR, options_.iterations_per_round), &problem,
-               &summary);
-  if (!summary.IsSolutionUsable()) {
-    spdlog::warn("pose optimisation over {} residuals failed, pose left unchanged: {}",
-                 problem.NumResidualBlocks(), summary.message);
-    return T_w_b;
-  }
-  return fromPoseBlock(pose.data());
+  if (terms.empty()) return T_w_b;
+  PoseLeastSquaresOptions solver;
+  solver.max_iterations = options_.iterations_per_round;
+  return PoseLeastSquares(std::move(terms), solver).solve(T_w_b);
 }
 
 void PoseOptimizer::classify(const std::vector<ReprojectionCamera>& cameras,

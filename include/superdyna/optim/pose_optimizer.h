@@ -99,9 +99,8 @@ class PoseOptimizer {
   void classify(const std::vector<ReprojectionCamera>& cameras,
                 const std::vector<PoseObservation>& observations,
                 PoseOptimizationResult& result) const;
-  /// One optimisation over the observations flagged in `use` that can be evaluated at `T_w_b`
-  /// (in front of the camera); returns the new pose, or `T_w_b` (with a warning) when Ceres gives
-  /// no usable solution.
+  /// One optimisation (PoseLeastSquares, iterations_per_round) over the observations flagged in
+  /// `use` that can be evaluated at `T_w_b` (in front of the camera); returns the new pose.
   SE3d optimizeOnce(const SE3d& T_w_b, const std::vector<ReprojectionCamera>& cameras,
                     const std::vector<PoseObservation>& observations, const std::vector<bool>& use,
                     bool robust, const std::optional<PosePrior>& prior) const;
