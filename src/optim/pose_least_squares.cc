@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "superdyna/optim/se3_manifold.h"
 
@@ -45,8 +46,8 @@ Vector6d dampedStep(const Matrix6d& H, const Vector6d& g, double lambda) {
 }  // namespace
 
 struct PoseLeastSquares::NormalEquations {
-  Eigen::Matrix<double, 6, 6> H = Matrix6d::Zero();  ///< J^T W J in the tangent [dq, dp].
-  Vector6d g = Vector6d::Zero();                     ///< J^T W r.
+  Matrix6d H = Matrix6d::Zero();  ///< J^T W J in the tangent [dq, dp].
+  Vector6d g = Vector6d::Zero();  ///< J^T W r.
   double cost = 0.0;
 };
 
@@ -54,9 +55,8 @@ PoseLeastSquares::PoseLeastSquares(std::vector<PoseTerm> terms, PoseLeastSquares
     : terms_(std::move(terms)), options_(options) {
   for (const PoseTerm& term : terms_) {
     if (term.factor == nullptr || term.factor->num_residuals() > kMaxPoseTermResiduals) {
-      throw std::invalid_argument(
-          "PoseLeastSquares: a term needs a cost function of at most 6 "
-          "residuals");
+      throw std::invalid_argument("PoseLeastSquares: a term needs a cost function of at most " +
+                                  std::to_string(kMaxPoseTermResiduals) + " residuals");
     }
   }
 }

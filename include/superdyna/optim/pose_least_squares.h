@@ -57,8 +57,8 @@ class PoseLeastSquares {
  private:
   struct NormalEquations;
   std::optional<NormalEquations> linearize(const SE3d& T_w_b) const;
-  /// Adds one term of `Rows` residuals (Eigen::Dynamic: any up to kMaxResiduals) at the pose
-  /// block to the normal equations; false when it cannot be evaluated there.
+  /// Adds one term of `Rows` residuals (Eigen::Dynamic: any up to kMaxPoseTermResiduals) at the
+  /// pose block to the normal equations; false when it cannot be evaluated there.
   template <int Rows>
   static bool accumulate(const PoseTerm& term, const PoseBlock& block,
                          const Eigen::Matrix<double, kPoseBlockSize, kPoseTangentSize>& plus,
