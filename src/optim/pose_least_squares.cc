@@ -1,9 +1,10 @@
 #include "superdyna/optim/pose_least_squares.h"
 
+#include <ceres/loss_function.h>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
-#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -15,16 +16,12 @@ namespace {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
-/// Ceres' HuberLoss rho(s) of a squared residual norm s; s itself without a threshold.
-double robustCost(double s, double delta) {
-  if (delta <= 0.0 || s <= delta * delta) return s;
-  return 2.0 * delta * std::sqrt(s) - delta * delta;
-}
-
-/// rho'(s): the weight of the residual in the normal equations.
-double robustWeight(double s, double delta) {
-  if (delta <= 0.0 || s <= delta * delta) return 1.0;
-  return delta / std::sqrt(s);
+/// rho(s) and rho'(s) (the residual's weight in the normal equations) of a squared residual
+/// norm s under Ceres' HuberLoss(delta); s and 1 without a threshold.
+std::array<double, 3> robustified(double s, double delta) {
+  std::array<double, 3> rho = {s, 1.0, 0.0};
+  if (delta > 0.0) ceres::HuberLoss(delta).Evaluate(s, rho.data());
+  return rho;
 }
 
 /// Evaluates one term at a pose block: its residuals, and with `jacobian` their derivative by the
@@ -69,7 +66,7 @@ std::optional<double> PoseLeastSquares::cost(const SE3d& T_w_b) const {
     if (!evaluateTerm(term, block, r.data(), nullptr)) return std::nullopt;
     const int rows = term.factor->num_residuals();
     const double s = Eigen::Map<const Eigen::VectorXd>(r.data(), rows).squaredNorm();
-    total += robustCost(s, term.huber_delta);
+    total += robustified(s, term.huber_delta)[0];
   }
   return total;
 }
@@ -113,11 +110,10 @@ bool PoseLeastSquares::accumulate(
   if (!evaluateTerm(term, block, residual.data(), J_block.data())) return false;
   const Eigen::Matrix<double, Rows, kPoseTangentSize, 0, kMaxRows, kPoseTangentSize> J =
       J_block * plus;
-  const double s = residual.squaredNorm();
-  const double weight = robustWeight(s, term.huber_delta);
-  equations.H.noalias() += weight * J.transpose() * J;
-  equations.g.noalias() += weight * J.transpose() * residual;
-  equations.cost += robustCost(s, term.huber_delta);
+  const std::array<double, 3> rho = robustified(residual.squaredNorm(), term.huber_delta);
+  equations.H.noalias() += rho[1] * J.transpose() * J;
+  equations.g.noalias() += rho[1] * J.transpose() * residual;
+  equations.cost += rho[0];
   return true;
 }
 

@@ -107,17 +107,17 @@ double PoseOptimizer::chi2Threshold(const PoseObservation& observation) const {
   return observation.right_x ? options_.chi2_stereo : options_.chi2_mono;
 }
 
-SE3d PoseOptimizer::optimizeOnce(const SE3d& T_w_b, const std::vector<ReprojectionCamera>& cameras,
-                                 const std::vector<PoseObservation>& observations,
-                                 const std::vector<bool>& use, bool robust,
+SE3d PoseOptimizer::optimizeOnce(const PoseOptimizationResult& current,
+                                 const std::vector<ReprojectionCamera>& cameras,
+                                 const std::vector<PoseObservation>& observations, bool robust,
                                  const std::optional<PosePrior>& prior) const {
+  const SE3d& T_w_b = current.T_w_b;
   std::vector<std::unique_ptr<ceres::CostFunction>> factors;
   std::vector<PoseTerm> terms;
   for (std::size_t i = 0; i < observations.size(); ++i) {
-    if (!use[i]) continue;
-    const PoseObservation& observation = observations[i];
     // A residual that cannot be evaluated at the start (behind the camera) is left out.
-    if (!std::isfinite(chi2(observation, cameras[observation.camera], T_w_b))) continue;
+    if (!current.inliers[i] || !std::isfinite(current.chi2[i])) continue;
+    const PoseObservation& observation = observations[i];
     factors.emplace_back(newCostFunction(observation, cameras[observation.camera]));
     const double huber_delta = robust ? std::sqrt(chi2Threshold(observation)) : 0.0;
     terms.push_back({factors.back().get(), observation.p_w.data(), huber_delta});
@@ -166,7 +166,7 @@ PoseOptimizationResult PoseOptimizer::optimize(const SE3d& T_w_b_initial,
         static_cast<int>(std::count(result.inliers.begin(), result.inliers.end(), true));
     if (usable < options_.min_inliers && !prior) break;
     const bool robust = round < options_.robust_rounds;
-    result.T_w_b = optimizeOnce(result.T_w_b, cameras, observations, result.inliers, robust, prior);
+    result.T_w_b = optimizeOnce(result, cameras, observations, robust, prior);
     ++result.rounds_run;
     classify(cameras, observations, result);
   }

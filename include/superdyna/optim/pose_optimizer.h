@@ -99,11 +99,13 @@ class PoseOptimizer {
   void classify(const std::vector<ReprojectionCamera>& cameras,
                 const std::vector<PoseObservation>& observations,
                 PoseOptimizationResult& result) const;
-  /// One optimisation (PoseLeastSquares, iterations_per_round) over the observations flagged in
-  /// `use` that can be evaluated at `T_w_b` (in front of the camera); returns the new pose.
-  SE3d optimizeOnce(const SE3d& T_w_b, const std::vector<ReprojectionCamera>& cameras,
-                    const std::vector<PoseObservation>& observations, const std::vector<bool>& use,
-                    bool robust, const std::optional<PosePrior>& prior) const;
+  /// One optimisation (PoseLeastSquares, iterations_per_round) from current.T_w_b over the
+  /// observations current.inliers flags whose current.chi2 (classify() at that pose) is finite
+  /// (in front of the camera); returns the new pose.
+  SE3d optimizeOnce(const PoseOptimizationResult& current,
+                    const std::vector<ReprojectionCamera>& cameras,
+                    const std::vector<PoseObservation>& observations, bool robust,
+                    const std::optional<PosePrior>& prior) const;
 
   PoseOptimizerOptions options_;
 };
