@@ -137,6 +137,10 @@ void StereoMatchOptions::validate() const {
   if (!(refine_max_shift > 0.0 && refine_max_shift <= 1.0)) {
     throw OptionError("refine_max_shift", "must be in (0, 1]");
   }
+  if (!(check_search_px >= 0.0)) throw OptionError("check_search_px", "must be >= 0");
+  if (!(check_ratio > 0.0 && check_ratio <= 1.0)) {
+    throw OptionError("check_ratio", "must be in (0, 1]");
+  }
 }
 
 StereoMatcher::StereoMatcher(const sensors::CameraCalibration& cam0,
@@ -338,24 +342,43 @@ bool windowFits(const cv::Mat& image, const Eigen::Vector2d& centre, double reac
          centre.x() + margin <= image.cols - 1.0 && centre.y() + margin <= image.rows - 1.0;
 }
 
-/// Offset [steps] along `step` from `at` of the sub-pixel SAD minimum of the right window against
-/// the left window at `centre`, searched `search` steps either side; nullopt when the minimum
-/// lies at the end of the search or the SAD curve has no parabolic minimum there.
-std::optional<double> sadMinimumAlong(const cv::Mat& left_image, const Eigen::Vector2d& centre,
-                                      const cv::Mat& right_image, const Eigen::Vector2d& at,
-                                      const Eigen::Vector2d& step, int search) {
+/// The SAD of the left window at `centre` against right windows at `at` + k * `step`, k =
+/// -reach..reach.
+std::vector<float> sadsAlong(const cv::Mat& left_image, const Eigen::Vector2d& centre,
+                             const cv::Mat& right_image, const Eigen::Vector2d& at,
+                             const Eigen::Vector2d& step, int reach) {
   const SadWindow window = zeroMeanWindowAt(left_image, centre);
   std::vector<float> sads;
-  sads.reserve(static_cast<std::size_t>(2 * search + 1));
-  for (int k = -search; k <= search; ++k)
+  sads.reserve(static_cast<std::size_t>(2 * reach + 1));
+  for (int k = -reach; k <= reach; ++k)
     sads.push_back(sumAbsoluteDifferences(window, zeroMeanWindowAt(right_image, at + k * step)));
-  const auto best = std::min_element(sads.begin(), sads.end());
-  const long index = best - sads.begin();
-  if (index == 0 || index + 1 == static_cast<long>(sads.size())) return std::nullopt;
-  const auto offset = parabolaMinimum(sads[static_cast<std::size_t>(index - 1)], *best,
-                                      sads[static_cast<std::size_t>(index + 1)]);
+  return sads;
+}
+
+/// Offset [steps] from the centre of `sads` (2 * reach + 1 samples) of the sub-pixel minimum of
+/// its central 2 * search + 1 samples; nullopt when that minimum lies at the end of the search or
+/// the SAD curve has no parabolic minimum there.
+std::optional<double> sadMinimumWithin(const std::vector<float>& sads, int search) {
+  const long reach = static_cast<long>(sads.size() / 2);
+  const auto first = sads.begin() + (reach - search), last = sads.begin() + (reach + search + 1);
+  const auto best = std::min_element(first, last);
+  if (best == first || best + 1 == last) return std::nullopt;
+  const auto offset = parabolaMinimum(*(best - 1), *best, *(best + 1));
   if (!offset) return std::nullopt;
-  return static_cast<double>(index - search) + *offset;
+  return static_cast<double>(best - sads.begin() - reach) + *offset;
+}
+
+/// Whether a window outside the central 2 * search + 1 samples of `sads` matches better than
+/// `ratio` times the best one inside: the descriptor match likely paired the left keypoint with a
+/// right neighbour of its own point (absent from the right keypoints) or a repetition.
+bool betterWindowOutside(const std::vector<float>& sads, int search, double ratio) {
+  const long reach = static_cast<long>(sads.size() / 2);
+  const auto first = sads.begin() + (reach - search), last = sads.begin() + (reach + search + 1);
+  const float inside = *std::min_element(first, last);
+  const float outside =
+      std::min(first == sads.begin() ? inside : *std::min_element(sads.begin(), first),
+               last == sads.end() ? inside : *std::min_element(last, sads.end()));
+  return outside < ratio * inside;
 }
 
 }  // namespace
@@ -375,7 +398,11 @@ std::optional<StereoMatch> StereoMatcher::refined(const StereoMatch& match,
   const auto nearer = camera1_.project(T_c1_c0_ * (0.5 * p_centre));
   if (!at || !nearer || !windowFits(right_image, *at, search_px)) return match;
   const Eigen::Vector2d step = (*at - *nearer).normalized();  // towards smaller disparity
-  const auto offset = sadMinimumAlong(left_image, centre, right_image, *at, step, search_px);
+  const int check = static_cast<int>(std::ceil(options_.check_search_px));
+  const int reach = check > search_px && windowFits(right_image, *at, check) ? check : search_px;
+  const std::vector<float> sads = sadsAlong(left_image, centre, right_image, *at, step, reach);
+  if (betterWindowOutside(sads, search_px, options_.check_ratio)) return std::nullopt;
+  const auto offset = sadMinimumWithin(sads, search_px);
   // A minimum far out in the search is more often another repetition of the texture or the far
   // side of a depth edge than the keypoints' point (measured: see refine_max_shift).
   if (!offset || std::abs(*offset) > options_.refine_max_shift * search_px) return match;

@@ -53,6 +53,8 @@ stereo:
   max_depth_m: 50
   refine_on_images: false
   refine_max_shift: 0.75
+  check_search_px: 4.5
+  check_ratio: 0.9
 projection:
   radius_px: 12.5
   max_distance: 90
@@ -303,7 +305,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 242u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 244u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";
