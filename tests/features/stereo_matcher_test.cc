@@ -790,6 +790,22 @@ DisparityErrors disparityErrorsByDepth(const sim::SimulationOptions& options, st
   return errors;
 }
 
+/// Options of a sequence without movers along `trajectory` from `start_s` for `duration_s`, image
+/// noise on (as in the SLAM runs), written to `out`.
+sim::SimulationOptions staticSceneOptions(const fs::path& out, const fs::path& trajectory,
+                                          sim::SceneType scene, double start_s, double duration_s,
+                                          std::uint64_t seed) {
+  sim::SimulationOptions options;
+  options.output_dir = out;
+  options.motion.trajectory_file = trajectory;
+  options.motion.start_s = start_s;
+  options.motion.duration_s = duration_s;
+  options.world.scene = scene;
+  options.world.dynamic = sim::DynamicLevel::kNone;
+  options.seed = seed;
+  return options;
+}
+
 TEST(DrivingStereo, DisparitiesAreUnbiasedAtStreetDepths) {
   // A car at 14 m/s (KITTI 06 motion) sees its points at 5-45 m, where a bias of 0.05 px is 1-5 %
   // of the depth. Visual stereo on this motion came out 1.5 % short; the stereo depths are not
@@ -798,16 +814,10 @@ TEST(DrivingStereo, DisparitiesAreUnbiasedAtStreetDepths) {
   SUPERDYNA_REQUIRE_SHARED(poses, "data/trajectories/kitti/06.txt");
   SUPERDYNA_REQUIRE_SHARED(times, "data/trajectories/kitti/06_times.txt");
   const ::superdyna::test::ScratchDir dir("features_driving_stereo");
-  sim::SimulationOptions options;
-  options.output_dir = dir / "seq";
-  options.motion.trajectory_file = poses;
+  sim::SimulationOptions options =
+      staticSceneOptions(dir / "seq", poses, sim::SceneType::kStreet, 40.0, 1.0, 606);
   options.motion.read.kitti_times = times;
-  options.motion.start_s = 40.0;
-  options.motion.duration_s = 1.0;
-  options.world.scene = sim::SceneType::kStreet;
-  options.world.dynamic = sim::DynamicLevel::kNone;
   options.landmark_count = 0;
-  options.seed = 606;  // image noise on, as in the SLAM runs
   sim::generateSequence(options);
   const std::vector<double> edges = {10.0, 20.0, 30.0, 45.0};
   OrbExtractor extractor;
@@ -832,14 +842,9 @@ TEST(IndoorStereo, MatchesWhoseWindowFitsBetterElsewhereAlongTheEpipolarLineAreD
   SUPERDYNA_REQUIRE_SHARED(poses, "data/trajectories/euroc/MH_01_easy.txt");
   SUPERDYNA_REQUIRE_SHARED(model, "models/xfeat.onnx");
   const ::superdyna::test::ScratchDir dir("features_indoor_stereo");
-  sim::SimulationOptions options;
-  options.output_dir = dir / "seq";
-  options.motion.trajectory_file = poses;
-  options.motion.start_s = 40.0;
-  options.motion.duration_s = 2.0;
-  options.world.scene = sim::SceneType::kIndoor;
-  options.world.dynamic = sim::DynamicLevel::kNone;
-  options.seed = 5;  // the backbone table's MH_01 sequence, image noise on
+  // The backbone table's MH_01 sequence (seed 5), its first 2 s.
+  const sim::SimulationOptions options =
+      staticSceneOptions(dir / "seq", poses, sim::SceneType::kIndoor, 40.0, 2.0, 5);
   sim::generateSequence(options);
   const std::vector<double> edges = {0.5, 4.0, 8.0, 40.0};
   XFeatOptions xfeat;
