@@ -58,11 +58,12 @@ struct StereoMatchOptions {
   double refine_max_shift = 0.5;
   /// The refinement also compares windows up to this far along the epipolar curve [px], >= 0, and
   /// drops a match when one beyond its own search has a SAD below check_ratio (in (0, 1]) times
-  /// the best within (0: no check). Measured on 2 s of the MH_01 motion (test
-  /// IndoorStereo.MatchesWhoseWindowFits...; 6 px, ratio 1): matches more than 2 px off, XFeat
-  /// 21 -> 6.6 %, SuperPoint 3.8 -> 1.5 %, ALIKE-t 2.6 -> 1.0 %, ORB 3.3 -> 1.6 %, the good
-  /// ones 98-100 % kept. On in the XFeat configs only: with it ORB's stereo-inertial KITTI 00 / 06
-  /// motion runs came out at 0.32 / 1.30 m against 0.15 / 0.43 m (issue 18 note).
+  /// the best within (0: no check; nor where the wider windows would leave the image). Measured
+  /// on 2 s of the MH_01 motion (test IndoorStereo.MatchesWhoseWindowFits...; 6 px, ratio 1):
+  /// matches more than 2 px off, XFeat 21 -> 6.6 %, SuperPoint 3.8 -> 1.5 %, ALIKE-t 2.6 -> 1.0 %,
+  /// ORB 3.3 -> 1.6 %, the good ones 98-100 % kept. On in the XFeat configs only: with it ORB's
+  /// stereo-inertial KITTI 00 / 06 motion runs came out at 0.32 / 1.30 m against 0.15 / 0.43 m
+  /// (README "Running SLAM").
   double check_search_px = 0.0;
   double check_ratio = 1.0;
 
