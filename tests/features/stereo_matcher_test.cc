@@ -20,6 +20,7 @@
 #include "superdyna/sim/renderer.h"
 #include "superdyna/sim/se3_spline.h"
 #include "superdyna/sim/sequence_generator.h"
+#include "support/generated_sequence.h"
 #include "support/test_support.h"
 
 namespace superdyna::features {
@@ -795,14 +796,11 @@ DisparityErrors disparityErrorsByDepth(const sim::SimulationOptions& options, st
 sim::SimulationOptions staticSceneOptions(const fs::path& out, const fs::path& trajectory,
                                           sim::SceneType scene, double start_s, double duration_s,
                                           std::uint64_t seed) {
-  sim::SimulationOptions options;
+  sim::SimulationOptions options =
+      ::superdyna::test::flightOptions(duration_s, scene, sim::DynamicLevel::kNone, seed);
   options.output_dir = out;
   options.motion.trajectory_file = trajectory;
   options.motion.start_s = start_s;
-  options.motion.duration_s = duration_s;
-  options.world.scene = scene;
-  options.world.dynamic = sim::DynamicLevel::kNone;
-  options.seed = seed;
   return options;
 }
 
