@@ -640,7 +640,7 @@ bool LoopCloser::correct(map::Map& map, const VerifiedLoop& loop, bool inertial)
     record.keyframes.push_back(C);
     const std::optional<map::KeyFrame> kf = map.keyFrame(id);
     map.setKeyFramePose(id, C.apply(kf->T_w_b));
-    if (inertial) map.setKeyFrameInertialState(id, C.C.rotation() * kf->v_w, kf->bg, kf->ba);
+    if (inertial) map.rotateKeyFrameVelocity(id, C.C.rotation());
     correction[id] = C;
   }
   for (const map::MapPointId id : map.mapPointIds()) {

@@ -363,6 +363,15 @@ bool Map::setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
   keyframe->v_w = v_w;
   keyframe->bg = bg;
   keyframe->ba = ba;
+  keyframe->inertial_estimated = true;
+  return true;
+}
+
+bool Map::rotateKeyFrameVelocity(KeyFrameId id, const Eigen::Matrix3d& R) {
+  const std::lock_guard lock(mutex_);
+  KeyFrame* keyframe = findKeyFrame(id);
+  if (keyframe == nullptr) return false;
+  keyframe->v_w = R * keyframe->v_w;
   return true;
 }
 

@@ -75,6 +75,18 @@ std::vector<sensors::ImuSample> ImuSampleBuffer::startInterval(TimeNs t_ns) {
   return interval;
 }
 
+std::vector<sensors::ImuSample> joinImuSamples(const std::vector<sensors::ImuSample>& earlier,
+                                               const std::vector<sensors::ImuSample>& later) {
+  std::vector<sensors::ImuSample> joined;
+  joined.reserve(earlier.size() + later.size());
+  for (const sensors::ImuSample& sample : earlier) {
+    if (!later.empty() && sample.t_ns >= later.front().t_ns) break;
+    joined.push_back(sample);
+  }
+  joined.insert(joined.end(), later.begin(), later.end());
+  return joined;
+}
+
 std::optional<InertialPrediction> predictFromKeyFrame(
     const map::KeyFrame& keyframe, const std::vector<sensors::ImuSample>& samples, TimeNs t_ns,
     const SE3d& T_b_i, const imu::ImuNoise& noise, const InertialPriorOptions& options) {

@@ -100,6 +100,19 @@ std::vector<optim::ReprojectionCamera> rigCameras(
   return cameras;
 }
 
+/// The keyframe's time, pose, velocity and biases (nothing else: no keypoints or descriptors).
+map::KeyFrame inertialStateOf(const map::Map& map, map::KeyFrameId id) {
+  map::KeyFrame state;
+  map.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+    state.t_ns = kf.t_ns;
+    state.T_w_b = kf.T_w_b;
+    state.v_w = kf.v_w;
+    state.bg = kf.bg;
+    state.ba = kf.ba;
+  });
+  return state;
+}
+
 }  // namespace
 
 Tracker::Tracker(const TrackerOptions& options, const PyramidInfo& pyramid,
@@ -165,12 +178,49 @@ SE3d Tracker::predictWithImu(const imu::Preintegration& preintegration) const {
 std::optional<InertialPrediction> Tracker::predictInertial(const Frame& frame) const {
   // The tracker's own count, not the mapper's: the mapper's state belongs to the mapping thread.
   if (!imu_ || !has_map_ || !inertialInitialized() || localization_only_) return std::nullopt;
-  std::optional<InertialPrediction> prediction;
-  map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
-    prediction = predictFromKeyFrame(kf, imu_since_keyframe_.samples(), frame.t_ns, imu_->T_b_i,
-                                     imu::ImuNoise::fromCalibration(*imu_), options_.imu_prior);
-  });
-  return prediction;
+  return predictFromKeyFrame(referenceInertialState(), imu_since_keyframe_.samples(), frame.t_ns,
+                             imu_->T_b_i, imu::ImuNoise::fromCalibration(*imu_),
+                             options_.imu_prior);
+}
+
+map::KeyFrame Tracker::referenceInertialState() const {
+  map::KeyFrame reference = inertialStateOf(*map_, reference_);
+  const PredictionStart start = predictionStart();
+  if (start.keyframe == reference_) return reference;
+  const map::KeyFrame estimated = inertialStateOf(*map_, start.keyframe);
+  const std::optional<InertialPrediction> carried =
+      predictFromKeyFrame(estimated, start.samples, reference.t_ns, imu_->T_b_i,
+                          imu::ImuNoise::fromCalibration(*imu_), options_.imu_prior);
+  if (!carried) return reference;  // an IMU gap on the way: the reference's own state
+  reference.v_w = carried->v_w;
+  reference.bg = estimated.bg;
+  reference.ba = estimated.ba;
+  return reference;
+}
+
+Tracker::PredictionStart Tracker::predictionStart() const {
+  // A keyframe's velocity and biases are the prediction it was inserted with until local inertial
+  // BA estimates them. With a mapping thread that BA may wait behind others; taking them from such
+  // a keyframe, whose velocity came from the same kind of prediction, chains IMU predictions with
+  // no estimate ever correcting the velocity, and while the mapper is behind (keyframes every few
+  // frames at car speed) the velocity drifts by metres per second until tracking fails. So they
+  // come from the newest estimated keyframe, carried across the ones after it.
+  constexpr int kMaxPredictionChain = 32;
+  PredictionStart start{reference_, imu_since_keyframe_.samples()};
+  for (int k = 0; k < kMaxPredictionChain; ++k) {
+    bool estimated = true;
+    map::KeyFrameId previous = map::kNoKeyFrame;
+    std::vector<sensors::ImuSample> earlier;
+    map_->readKeyFrame(start.keyframe, [&](const map::KeyFrame& kf) {
+      estimated = kf.inertial_estimated;
+      previous = kf.previous;
+      if (!estimated) earlier = kf.imu_from_previous;
+    });
+    if (estimated) return start;
+    if (previous == map::kNoKeyFrame) break;
+    start = {previous, joinImuSamples(earlier, start.samples)};
+  }
+  return {reference_, imu_since_keyframe_.samples()};
 }
 
 std::optional<optim::PosePrior> Tracker::rotationPrior(const Prediction& prediction) const {
@@ -218,6 +268,7 @@ TrackingResult Tracker::track(const Frame& input) {
   }
   const Prediction prediction = predictPose(input, imu_usable);
   result.T_w_b = prediction.T_w_b;
+  result.T_w_predicted = prediction.T_w_b;
   std::vector<int> kept;
   std::optional<Frame> without_moving;
   if (options_.dynamic.mode != dynamic::DynamicMode::kOff) {
@@ -567,17 +618,12 @@ void Tracker::initializeInertialIfDue(TrackingResult& result) {
 
 void Tracker::updateBiasFromMap() {
   if (inertial_inits_ == 0) return;
-  const map::Map::ReadLock reading = map_->readLock();  // the link and the biases of one state
-  // Sequentially, local BA has just refined the newest keyframe. With a mapping thread its BA may
-  // still be queued (its biases are the ones this tracker gave it): take its predecessor, which
-  // local BA has most likely refined by now.
-  map::KeyFrameId source = reference_;
-  if (mapping_sink_) {
-    map_->readKeyFrame(reference_, [&](const map::KeyFrame& kf) {
-      if (kf.previous != map::kNoKeyFrame) source = kf.previous;
-    });
-  }
-  map_->readKeyFrame(source, [&](const map::KeyFrame& kf) { bias_ = {kf.bg, kf.ba}; });
+  const map::Map::ReadLock reading = map_->readLock();  // the chain and the biases of one state
+  // Sequentially, local BA has just estimated the newest keyframe; with a mapping thread its BA
+  // may still be queued (its biases are the ones this tracker gave it).
+  map_->readKeyFrame(predictionStart().keyframe, [&](const map::KeyFrame& kf) {
+    bias_ = {kf.bg, kf.ba};
+  });
 }
 
 std::vector<optim::PoseObservation> Tracker::poseObservations(

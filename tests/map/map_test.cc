@@ -559,6 +559,24 @@ TEST_F(ThreeKeyFrameMap, TransformWorldMovesPosesPointsAndVelocities) {
   EXPECT_EQ(map.consistencyError(), "");
 }
 
+TEST_F(ThreeKeyFrameMap, AnEstimatedInertialStateIsMarkedAndARotatedVelocityKeepsTheMark) {
+  // The tracker predicts from estimated velocities only (Tracker::predictionStart): a keyframe's
+  // state is its insertion-time prediction until an estimation sets it.
+  EXPECT_FALSE(map.keyFrame(kf[1])->inertial_estimated);
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  ASSERT_TRUE(map.rotateKeyFrameVelocity(kf[1], R));  // a loop correction
+  EXPECT_FALSE(map.keyFrame(kf[1])->inertial_estimated);
+  ASSERT_TRUE(map.setKeyFrameInertialState(kf[1], Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Zero(),
+                                           Eigen::Vector3d::Zero()));
+  EXPECT_TRUE(map.keyFrame(kf[1])->inertial_estimated);
+  EXPECT_FALSE(map.keyFrame(kf[2])->inertial_estimated);
+  ASSERT_TRUE(map.rotateKeyFrameVelocity(kf[1], R));
+  EXPECT_TRUE(map.keyFrame(kf[1])->inertial_estimated);
+  EXPECT_TRUE(map.keyFrame(kf[1])->v_w.isApprox(Eigen::Vector3d(0, 1, 0)));
+  EXPECT_FALSE(map.rotateKeyFrameVelocity(KeyFrameId{999}, R));
+}
+
 /// A keyframe of one keypoint whose descriptor is `descriptor`.
 KeyFrame keyFrameWithDescriptor(const cv::Mat& descriptor) {
   KeyFrame kf;

@@ -314,8 +314,8 @@ TEST(FrameLog, WritesOneRowPerFrameWithTheTrackerState) {
   for (std::string line; std::getline(in, line);)
     rows.push_back(line);
   ASSERT_EQ(rows.size(), 31u);
-  EXPECT_EQ(rows[0], "frame,state,matches,inliers,from_reference,keyframe,recovered");
-  EXPECT_EQ(rows[1], "0,initialized,0,0,0,1,");
+  EXPECT_EQ(rows[0], "frame,state,matches,inliers,prediction_m,from_reference,keyframe,recovered");
+  EXPECT_EQ(rows[1], "0,initialized,0,0,,0,1,");
   // The second frame of a map has no motion model: tracked from the reference keyframe.
   EXPECT_EQ(rows[2].substr(0, 11), "1,tracking,");
   EXPECT_EQ(rows[2].substr(rows[2].size() - 5, 2), ",1");

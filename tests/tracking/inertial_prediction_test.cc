@@ -32,6 +32,30 @@ TEST(ImuSampleBuffer, HandsOverTheSamplesBracketingEachKeyFrameInterval) {
   EXPECT_EQ(buffer.samples().front().t_ns, 20);
 }
 
+TEST(ImuSampleBuffer, JoinsTwoKeyFrameIntervalsIntoOneStrictlyIncreasingRun) {
+  const auto run = [](std::initializer_list<TimeNs> times) {
+    std::vector<sensors::ImuSample> samples;
+    for (const TimeNs t : times) {
+      sensors::ImuSample s;
+      s.t_ns = t;
+      samples.push_back(s);
+    }
+    return samples;
+  };
+  const auto timesOf = [](const std::vector<sensors::ImuSample>& samples) {
+    std::vector<TimeNs> times;
+    for (const sensors::ImuSample& s : samples)
+      times.push_back(s.t_ns);
+    return times;
+  };
+  // A keyframe at 25 after one at 5: its interval brackets [5, 25], the next one starts at the
+  // last sample at or before 25 (ImuSampleBuffer::startInterval).
+  EXPECT_EQ(timesOf(joinImuSamples(run({0, 10, 20, 30}), run({20, 30, 40}))),
+            (std::vector<TimeNs>{0, 10, 20, 30, 40}));
+  EXPECT_EQ(timesOf(joinImuSamples(run({0, 10}), {})), (std::vector<TimeNs>{0, 10}));
+  EXPECT_EQ(timesOf(joinImuSamples({}, run({20, 30}))), (std::vector<TimeNs>{20, 30}));
+}
+
 TEST(ImuGap, FindsTheLastStretchLongerThanTheLimit) {
   const auto at = [](TimeNs t) {
     sensors::ImuSample s;

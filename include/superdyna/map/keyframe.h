@@ -44,6 +44,10 @@ struct KeyFrame {
   Eigen::Vector3d v_w = Eigen::Vector3d::Zero();
   Eigen::Vector3d bg = Eigen::Vector3d::Zero();  ///< Gyroscope bias [rad/s].
   Eigen::Vector3d ba = Eigen::Vector3d::Zero();  ///< Accelerometer bias [m/s^2].
+  /// Whether an estimation over the map (the inertial initialisation, inertial bundle adjustment:
+  /// Map::setKeyFrameInertialState) has set v_w, bg and ba; until then they are the tracker's
+  /// prediction at insertion.
+  bool inertial_estimated = false;
 
   /// Temporal predecessor: the keyframe before this one in time, kNoKeyFrame for the first.
   /// Set by Map::addKeyFrame (the newest keyframe of the map) and kept by Map::eraseKeyFrame.

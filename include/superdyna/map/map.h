@@ -217,9 +217,13 @@ class Map {
   // ---- State that does not change the structure -------------------------------------------------
 
   bool setKeyFramePose(KeyFrameId id, const SE3d& T_w_b);
-  /// Velocity v_w [m/s], gyroscope bias bg [rad/s], accelerometer bias ba [m/s^2].
+  /// An estimate of velocity v_w [m/s], gyroscope bias bg [rad/s] and accelerometer bias ba
+  /// [m/s^2]; marks the keyframe's inertial state estimated (KeyFrame::inertial_estimated).
   bool setKeyFrameInertialState(KeyFrameId id, const Eigen::Vector3d& v_w,
                                 const Eigen::Vector3d& bg, const Eigen::Vector3d& ba);
+  /// Rotates the keyframe's velocity by R (a correction of the map's frame around it); the state
+  /// stays as estimated, or not, as it was.
+  bool rotateKeyFrameVelocity(KeyFrameId id, const Eigen::Matrix3d& R);
   bool setMapPointPosition(MapPointId id, const Eigen::Vector3d& p_w);
   /// Moves the whole map by the similarity S_new_old: p -> s R p + t (the gravity alignment and
   /// scale of the inertial initialisation, a monocular map's scale normalisation). It acts on the

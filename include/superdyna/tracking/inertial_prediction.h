@@ -71,6 +71,11 @@ class ImuSampleBuffer {
   std::vector<sensors::ImuSample> samples_;
 };
 
+/// One run of samples from two consecutive ones: `earlier` (bracketing an interval that ends where
+/// `later`'s starts, KeyFrame::imu_from_previous) up to `later`'s first sample, then `later`.
+std::vector<sensors::ImuSample> joinImuSamples(const std::vector<sensors::ImuSample>& earlier,
+                                               const std::vector<sensors::ImuSample>& later);
+
 /// Predicts the body pose at t_ns from the keyframe's state and the samples (which must bracket
 /// [keyframe.t_ns, t_ns]); nullopt otherwise. T_b_i: IMU pose in the body frame. The prior's
 /// covariance is the preintegration covariance carried into the body pose (the IMU's rotation in

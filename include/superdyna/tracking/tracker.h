@@ -190,6 +190,8 @@ struct StageTimes {
 struct TrackingResult {
   TimeNs t_ns = 0;  ///< The frame's time.
   SE3d T_w_b;       ///< Estimated (or, when lost, predicted) body pose.
+  /// The predicted pose the frame's search started from (IMU or constant-velocity model).
+  SE3d T_w_predicted;
   TrackingState state = TrackingState::kLost;
   int matches = 0;
   int cross_class_matches = 0;  ///< Map-to-frame matches between different class_id.
@@ -346,9 +348,23 @@ class Tracker {
   void rememberFrame(const Frame& frame, const std::vector<int>& kept,
                      const std::vector<map::MapPointId>& tracked);
   std::optional<InertialPrediction> predictInertial(const Frame& frame) const;
+  /// Where the velocity and biases of an inertial prediction come from: a keyframe and the IMU
+  /// samples from it to the newest.
+  struct PredictionStart {
+    map::KeyFrameId keyframe = map::kNoKeyFrame;
+    std::vector<sensors::ImuSample> samples;
+  };
+  /// The newest keyframe, from the reference back, whose inertial state an estimation has set
+  /// (KeyFrame::inertial_estimated), with the samples since; the reference when none is within
+  /// 32 keyframes. Call with the map's read lock held.
+  PredictionStart predictionStart() const;
+  /// The state inertial predictions start from: the reference keyframe's tracked pose (the
+  /// newest), with the velocity and biases carried to it by the IMU from predictionStart().
+  map::KeyFrame referenceInertialState() const;
   /// With IMU: runs the local mapper's inertial (re-)initialisation of the map when it is due.
   void initializeInertialIfDue(TrackingResult& result);
-  /// After the inertial initialisation: the biases of the newest keyframe local BA has refined.
+  /// After the inertial initialisation: the biases of the newest keyframe an estimation has set
+  /// (predictionStart).
   void updateBiasFromMap();
   /// imu_usable false (an IMU gap in the frame's interval): the constant-velocity model only.
   Prediction predictPose(const Frame& frame, bool imu_usable) const;
