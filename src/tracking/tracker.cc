@@ -355,6 +355,7 @@ TrackingResult Tracker::track(const Frame& input) {
     // alike: the pose relative to the keyframe stays what tracking measured.
     const map::KeyFrameCorrection correction = followMapCorrections(&result.T_w_b);
     result.T_w_reference = correction.apply(result.T_w_reference);
+    result.T_w_predicted = correction.apply(result.T_w_predicted);
   }
   if (result.relocalized) {
     restartMotionAt(result.T_w_b, frame.t_ns, prediction);
@@ -612,6 +613,7 @@ void Tracker::initializeInertialIfDue(TrackingResult& result) {
     const Sim3d& T = *mapping.world_change;
     T_w_b_last_ = mapping::transformBodyPose(T, T_w_b_last_, T_b_c0_);
     velocity_w_ = T.s * (T.R * velocity_w_);
+    result.T_w_predicted = mapping::transformBodyPose(T, result.T_w_predicted, T_b_c0_);
   }
   result.T_w_b = map_->keyFramePose(reference_).value_or(result.T_w_b);
 }

@@ -190,7 +190,8 @@ struct StageTimes {
 struct TrackingResult {
   TimeNs t_ns = 0;  ///< The frame's time.
   SE3d T_w_b;       ///< Estimated (or, when lost, predicted) body pose.
-  /// The predicted pose the frame's search started from (IMU or constant-velocity model).
+  /// The predicted pose the frame's search started from (IMU or constant-velocity model), in the
+  /// frame of T_w_b (moved with the map's changes at this frame, as T_w_b).
   SE3d T_w_predicted;
   TrackingState state = TrackingState::kLost;
   int matches = 0;
