@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "superdyna/eval/statistics.h"
 #include "superdyna/io/dataset_source.h"
 #include "superdyna/sim/sequence_generator.h"
 #include "superdyna/tracking/front_end.h"
@@ -48,32 +49,36 @@ FrontEnd makeFrontEnd(const FrontEndOptions& options = {}) {
   return FrontEnd(options, calibrationOf(rig, rig.T_b_c0()), calibrationOf(rig, rig.T_b_c1()));
 }
 
-/// A mapping "thread" that never gets to run on its own: jobs wait until the tracker waits for
-/// them (waitIdle), so from the tracker's point of view local mapping is busy from each keyframe
-/// until it waits. Or, `immediate`, a mapper that runs each job at once (always idle).
+/// A mapping "thread" that runs a job only when more than `lag` jobs wait (the oldest first), and
+/// all of them when the tracker waits for it (waitIdle). lag 0: a mapper that runs each job at once
+/// (always idle); kNeverOnItsOwn: one that never runs on its own, so from the tracker's point of
+/// view local mapping is busy from each keyframe until it waits; in between, one that stays `lag`
+/// jobs behind (two jobs per keyframe: registering it, then its local mapping), as a mapper that
+/// cannot keep up with keyframes at car speed.
 class ManualMappingSink final : public MappingSink {
  public:
-  explicit ManualMappingSink(bool immediate) : immediate_(immediate) {}
+  static constexpr std::size_t kNeverOnItsOwn = std::numeric_limits<std::size_t>::max();
+  explicit ManualMappingSink(std::size_t lag) : lag_(lag) {}
   void submit(std::function<void()> job) override {
-    if (immediate_) {
-      job();
-      return;
-    }
     jobs_.push_back(std::move(job));
+    while (jobs_.size() > lag_)
+      runOldest();
   }
   void discardPending() override { jobs_.clear(); }
   void waitIdle() override {
-    while (!jobs_.empty()) {
-      std::function<void()> job = std::move(jobs_.front());
-      jobs_.pop_front();
-      job();
-    }
+    while (!jobs_.empty())
+      runOldest();
   }
   bool busy() const override { return !jobs_.empty(); }
   std::size_t pending() const { return jobs_.size(); }
 
  private:
-  bool immediate_;
+  void runOldest() {
+    std::function<void()> job = std::move(jobs_.front());
+    jobs_.pop_front();
+    job();
+  }
+  std::size_t lag_;
   std::deque<std::function<void()>> jobs_;
 };
 
@@ -149,7 +154,7 @@ TEST(MonoTracker, NeverRunsMoreThanOneKeyFrameAheadOfABusyMapper) {
   options.keyframe_max_interval_s = 0.5;
   options.keyframe_weak_inliers = 0;  // never weak: keyframes only when overdue
   options.mono_wait_for_mapping = false;
-  ManualMappingSink busy(false);
+  ManualMappingSink busy(ManualMappingSink::kNeverOnItsOwn);
   const MonoRun overdue_only = trackMono(options, &busy);
   EXPECT_EQ(overdue_only.lost, 0);
   EXPECT_EQ(overdue_only.resets, 0);
@@ -200,7 +205,7 @@ MonoInertialKeyFrames trackMonoInertial(bool wait_for_keyframe_ba,
   mapping.inertial_init.min_scale_excitation = 0.05;  // the street flight is smooth
   options.mono_inertial_wait_for_keyframe_ba = wait_for_keyframe_ba;
   Tracker tracker(options, PyramidInfo{}, mapping, source->camera0(), std::nullopt, source->imu());
-  ManualMappingSink busy(false);
+  ManualMappingSink busy(ManualMappingSink::kNeverOnItsOwn);
   tracker.setMappingSink(&busy);
   MonoInertialKeyFrames out;
   while (const auto bundle = source->next()) {
@@ -320,40 +325,12 @@ TEST(MonoTracker, KeyFramesKeepTheMinimumIntervalUnlessTrackingIsWeak) {
   EXPECT_GE(minKeyFrameGapSeconds(spaced), 0.25 - 1e-6);
   // An idle mapper (or none) and no minimum interval: the tracked-ratio test fires more often.
   options.keyframe_min_interval_s = 0.0;
-  ManualMappingSink idle(true);
+  ManualMappingSink idle(0);
   const MonoRun dense = trackMono(options, &idle);
   EXPECT_EQ(dense.lost, 0);
   EXPECT_GT(dense.keyframes.size(), spaced.keyframes.size());
   EXPECT_LT(minKeyFrameGapSeconds(dense), 0.25);
 }
-
-/// A mapping thread that stays `lag` jobs behind the tracker (two jobs per keyframe: registering
-/// it, then its local mapping), as one that cannot keep up with keyframes at car speed: each
-/// submit runs the oldest jobs beyond `lag`; waitIdle runs them all.
-class LaggingMappingSink final : public MappingSink {
- public:
-  explicit LaggingMappingSink(std::size_t lag) : lag_(lag) {}
-  void submit(std::function<void()> job) override {
-    jobs_.push_back(std::move(job));
-    while (jobs_.size() > lag_)
-      runOldest();
-  }
-  void discardPending() override { jobs_.clear(); }
-  void waitIdle() override {
-    while (!jobs_.empty())
-      runOldest();
-  }
-  bool busy() const override { return !jobs_.empty(); }
-
- private:
-  void runOldest() {
-    std::function<void()> job = std::move(jobs_.front());
-    jobs_.pop_front();
-    job();
-  }
-  std::size_t lag_;
-  std::deque<std::function<void()>> jobs_;
-};
 
 /// An 8 s street flight whose accelerometer bias wanders 33 times faster than the simulator's
 /// default (0.1 m/s^3/sqrt(Hz)): the biases at the inertial initialisation do not last, so a
@@ -396,11 +373,6 @@ PredictionRun trackStereoInertial(MappingSink& sink) {
   return run;
 }
 
-double median(std::vector<double> values) {
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  return values[values.size() / 2];
-}
-
 TEST(StereoInertialTracker, PredictsFromEstimatedStatesWhileTheMapperLagsBehind) {
   // The IMU prediction starts from a keyframe's velocity and biases. A keyframe gets them from
   // the prediction it was inserted with, and local inertial BA estimates them later. A mapper a
@@ -408,18 +380,18 @@ TEST(StereoInertialTracker, PredictsFromEstimatedStatesWhileTheMapperLagsBehind)
   // prediction from the one before, and so on: no estimate ever reached the prediction, and on a
   // KITTI-speed street the velocity drifted by metres per second until tracking failed
   // (issue 18). They must come from the newest estimated keyframe. Measured (this build, the
-  // deterministic sinks here): median offset lagging / in time 3.8 with the fix, 5.2 without.
-  ManualMappingSink in_time(true);
+  // deterministic sinks here): median offset lagging / in time 3.7 with the fix, 5.2 without.
+  ManualMappingSink in_time(0);
   const PredictionRun prompt = trackStereoInertial(in_time);
-  LaggingMappingSink lagging(3);
+  ManualMappingSink lagging(3);
   const PredictionRun lagged = trackStereoInertial(lagging);
   ASSERT_TRUE(prompt.initialized);
   ASSERT_TRUE(lagged.initialized);
   ASSERT_GE(lagged.prediction_m.size(), 40u);
   EXPECT_EQ(prompt.lost, 0);
   EXPECT_EQ(lagged.lost, 0);
-  const double prompt_median = median(prompt.prediction_m);
-  const double lagged_median = median(lagged.prediction_m);
+  const double prompt_median = eval::median(prompt.prediction_m);
+  const double lagged_median = eval::median(lagged.prediction_m);
   std::cout << "predicted - tracked position after the inertial initialisation, median: mapper "
             << "in time " << prompt_median << " m, a keyframe behind " << lagged_median
             << " m; at the initialisation " << prompt.initialization_prediction_m << " m\n";
