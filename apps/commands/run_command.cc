@@ -439,7 +439,9 @@ class RunCommand : public Command {
                      "looked up in $SUPERDYNA_MODEL_DIR, then models/)");
     sub_->add_option("--frame-log", frame_log_,
                      "Also write a CSV row per frame: index, tracking state, map matches, pose "
-                     "inliers, tracked from the reference keyframe (1/0), keyframe (1/0)");
+                     "inliers, distance of the tracked from the predicted position [m], tracked "
+                     "from the reference keyframe (1/0), keyframe (1/0), how it came back after "
+                     "a failure");
     sub_->add_option("--dynamic", dynamic_,
                      "Moving-object handling (overrides dynamic.mode): off (robust kernels "
                      "only), semantic (drop every movable object) or semantic-geometric (drop "
