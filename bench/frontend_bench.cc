@@ -10,13 +10,16 @@
 
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <string>
 
 #include "superdyna/features/alike_extractor.h"
+#include "superdyna/features/area_resize.h"
 #include "superdyna/features/orb_extractor.h"
 #include "superdyna/features/stereo_matcher.h"
 #include "superdyna/features/superpoint_extractor.h"
@@ -60,6 +63,37 @@ void BM_OrbExtract(benchmark::State& state) {
     benchmark::DoNotOptimize(extractor.extract(sample->frame.image0));
 }
 BENCHMARK(BM_OrbExtract)->Unit(benchmark::kMillisecond);
+
+/// ORB's pyramid (factor 1.2, 8 levels) of a EuRoC image: cv::resize (INTER_AREA) level by level
+/// (state.range(0) == 0) or AreaShrinker, the same bytes.
+void BM_OrbPyramid(benchmark::State& state) {
+  const auto& sample = stereoSample();
+  if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
+  const cv::Mat& image = sample->frame.image0;
+  std::vector<cv::Size> sizes{image.size()};
+  for (int l = 1; l < 8; ++l) {
+    const double scale = std::pow(1.2, l);
+    sizes.emplace_back(static_cast<int>(std::lround(image.cols / scale)),
+                       static_cast<int>(std::lround(image.rows / scale)));
+  }
+  std::vector<features::AreaShrinker> shrinkers;
+  for (std::size_t l = 1; l < sizes.size(); ++l)
+    shrinkers.emplace_back(sizes[l - 1], sizes[l]);
+  std::vector<cv::Mat> levels(sizes.size());
+  levels[0] = image;
+  for (auto _ : state) {
+    for (std::size_t l = 1; l < sizes.size(); ++l) {
+      if (state.range(0) == 0) {
+        cv::resize(levels[l - 1], levels[l], sizes[l], 0.0, 0.0, cv::INTER_AREA);
+      } else {
+        shrinkers[l - 1].apply(levels[l - 1], levels[l]);
+      }
+    }
+    benchmark::DoNotOptimize(levels.back().data);
+  }
+  state.SetLabel(state.range(0) == 0 ? "cv::resize" : "AreaShrinker");
+}
+BENCHMARK(BM_OrbPyramid)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 void BM_OrbStereoPair(benchmark::State& state) {
   const auto& sample = stereoSample();

@@ -87,14 +87,21 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
 }
 
 void OrbExtractor::buildPyramid(const cv::Mat& gray) {
+  if (shrinkers_.empty() || shrinkers_.front().from() != gray.size()) {
+    shrinkers_.clear();
+    cv::Size from = gray.size();
+    for (int l = 1; l < options_.levels; ++l) {
+      const cv::Size to(static_cast<int>(std::lround(gray.cols / scales_[l])),
+                        static_cast<int>(std::lround(gray.rows / scales_[l])));
+      if (to.width < 1 || to.height < 1) break;  // deeper levels stay empty
+      shrinkers_.emplace_back(from, to);
+      from = to;
+    }
+  }
   pyramid_.assign(static_cast<std::size_t>(options_.levels), cv::Mat());
   pyramid_[0] = gray;
-  for (int l = 1; l < options_.levels; ++l) {
-    const cv::Size size(static_cast<int>(std::lround(gray.cols / scales_[l])),
-                        static_cast<int>(std::lround(gray.rows / scales_[l])));
-    if (size.width < 1 || size.height < 1) break;  // deeper levels stay empty
-    cv::resize(pyramid_[l - 1], pyramid_[l], size, 0.0, 0.0, cv::INTER_AREA);
-  }
+  for (std::size_t l = 1; l <= shrinkers_.size(); ++l)
+    shrinkers_[l - 1].apply(pyramid_[l - 1], pyramid_[l]);
 }
 
 std::vector<cv::KeyPoint> OrbExtractor::detectCorners(const cv::Mat& level) const {

@@ -5,7 +5,8 @@
 // orientation; steered-BRIEF descriptors on the Gaussian-smoothed level. Output coordinates are
 // in the level-0 image.
 //
-// Pyramid: level l is level l - 1 resized (cv::INTER_AREA) to round(size0 / scale_factor^l). A
+// Pyramid: level l is level l - 1 resized (cv::INTER_AREA, computed by AreaShrinker) to
+// round(size0 / scale_factor^l). A
 // level pixel (x, y) maps to the level-0 pixel ((x + 0.5) * sx - 0.5, (y + 0.5) * sy - 0.5) with
 // sx = width0 / width_l, sy = height0 / height_l (pixel centres, as cv::resize samples).
 
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "superdyna/features/area_resize.h"
 #include "superdyna/features/feature_set.h"
 
 namespace superdyna::features {
@@ -69,6 +71,7 @@ class OrbExtractor final : public FeatureExtractor {
   std::vector<double> scales_;
   std::vector<int> targets_;
   std::vector<cv::Mat> pyramid_;
+  std::vector<AreaShrinker> shrinkers_;  ///< Level l - 1 to l, for the last input size.
 };
 
 }  // namespace superdyna::features
