@@ -6,6 +6,7 @@
 #include <cmath>
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
+#include <type_traits>
 
 #include "superdyna/core/error.h"
 
@@ -169,6 +170,23 @@ void weightedSumsOfFour(const float* s, const std::vector<int>& first, const flo
   }
 }
 
+/// Calls f(std::integral_constant<int, T>) with T = taps where a kernel is unrolled for that
+/// number of taps (2, 3: factors up to 2), else T = 0 (any number).
+template <typename F>
+void withTaps(int taps, F&& f) {
+  switch (taps) {
+    case 2:
+      f(std::integral_constant<int, 2>{});
+      break;
+    case 3:
+      f(std::integral_constant<int, 3>{});
+      break;
+    default:
+      f(std::integral_constant<int, 0>{});
+      break;
+  }
+}
+
 /// sum[x] += beta * h[x].
 void addWeighted(float beta, const float* h, int width, float* sum) {
   const cv::v_float32x4 b = cv::v_setall_f32(beta);
@@ -212,17 +230,9 @@ int AreaShrinker::sumRows(const cv::Mat& src, int row, std::vector<float>& scrat
   if (row + 4 > from_.height) {
     toFloat(src.ptr<std::uint8_t>(row), from_.width, scratch.data());
     float* out = ring.row(row);
-    switch (taps) {
-      case 2:
-        weightedSums<2>(scratch.data(), x_.first, w, taps, out);
-        break;
-      case 3:
-        weightedSums<3>(scratch.data(), x_.first, w, taps, out);
-        break;
-      default:
-        weightedSums<0>(scratch.data(), x_.first, w, taps, out);
-        break;
-    }
+    withTaps(taps, [&](auto fixed) {
+      weightedSums<decltype(fixed)::value>(scratch.data(), x_.first, w, taps, out);
+    });
     return 1;
   }
   const std::uint8_t* const rows[4] = {src.ptr<std::uint8_t>(row), src.ptr<std::uint8_t>(row + 1),
@@ -230,17 +240,9 @@ int AreaShrinker::sumRows(const cv::Mat& src, int row, std::vector<float>& scrat
                                        src.ptr<std::uint8_t>(row + 3)};
   float* const out[4] = {ring.row(row), ring.row(row + 1), ring.row(row + 2), ring.row(row + 3)};
   interleaveFour(rows, from_.width, scratch.data());
-  switch (taps) {
-    case 2:
-      weightedSumsOfFour<2>(scratch.data(), x_.first, w, taps, out);
-      break;
-    case 3:
-      weightedSumsOfFour<3>(scratch.data(), x_.first, w, taps, out);
-      break;
-    default:
-      weightedSumsOfFour<0>(scratch.data(), x_.first, w, taps, out);
-      break;
-  }
+  withTaps(taps, [&](auto fixed) {
+    weightedSumsOfFour<decltype(fixed)::value>(scratch.data(), x_.first, w, taps, out);
+  });
   return 4;
 }
 
