@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
@@ -30,7 +31,7 @@ bool isWholeFactor(double scale) {
 std::vector<std::pair<int, float>> overlaps(int source, int d, double scale) {
   const double begin = d * scale, end = begin + scale;
   const double cell = std::min(scale, source - begin);
-  int whole_end = std::min(static_cast<int>(std::floor(end)), source - 1);
+  const int whole_end = std::min(static_cast<int>(std::floor(end)), source - 1);
   const int whole_begin = std::min(static_cast<int>(std::ceil(begin)), whole_end);
   std::vector<std::pair<int, float>> taps;
   if (whole_begin - begin > kMinPartial) {
@@ -78,20 +79,24 @@ AreaShrinker::Axis AreaShrinker::axisTable(int source, int destination) {
 
 namespace {
 
+/// The 16 bytes of `bytes` as floats, to out[0..15].
+void storeAsFloats(const cv::v_uint8x16& bytes, float* out) {
+  cv::v_uint16x8 lo, hi;
+  cv::v_expand(bytes, lo, hi);
+  cv::v_uint32x4 a, b, c, d;
+  cv::v_expand(lo, a, b);
+  cv::v_expand(hi, c, d);
+  cv::v_store(out, cv::v_cvt_f32(cv::v_reinterpret_as_s32(a)));
+  cv::v_store(out + 4, cv::v_cvt_f32(cv::v_reinterpret_as_s32(b)));
+  cv::v_store(out + 8, cv::v_cvt_f32(cv::v_reinterpret_as_s32(c)));
+  cv::v_store(out + 12, cv::v_cvt_f32(cv::v_reinterpret_as_s32(d)));
+}
+
 /// Converts `width` gray levels to float.
 void toFloat(const std::uint8_t* row, int width, float* out) {
   int x = 0;
-  for (; x + 16 <= width; x += 16) {
-    cv::v_uint16x8 lo, hi;
-    cv::v_expand(cv::v_load(row + x), lo, hi);
-    cv::v_uint32x4 a, b, c, d;
-    cv::v_expand(lo, a, b);
-    cv::v_expand(hi, c, d);
-    cv::v_store(out + x, cv::v_cvt_f32(cv::v_reinterpret_as_s32(a)));
-    cv::v_store(out + x + 4, cv::v_cvt_f32(cv::v_reinterpret_as_s32(b)));
-    cv::v_store(out + x + 8, cv::v_cvt_f32(cv::v_reinterpret_as_s32(c)));
-    cv::v_store(out + x + 12, cv::v_cvt_f32(cv::v_reinterpret_as_s32(d)));
-  }
+  for (; x + 16 <= width; x += 16)
+    storeAsFloats(cv::v_load(row + x), out + x);
   for (; x < width; ++x)
     out[x] = static_cast<float>(row[x]);
 }
@@ -106,18 +111,8 @@ void interleaveFour(const std::uint8_t* const rows[4], int width, float* out) {
     cv::v_uint16x8 q[4];  // each: the four rows' bytes of four columns
     cv::v_zip(cv::v_reinterpret_as_u16(r01a), cv::v_reinterpret_as_u16(r23a), q[0], q[1]);
     cv::v_zip(cv::v_reinterpret_as_u16(r01b), cv::v_reinterpret_as_u16(r23b), q[2], q[3]);
-    for (int k = 0; k < 4; ++k) {
-      cv::v_uint16x8 lo, hi;
-      cv::v_expand(cv::v_reinterpret_as_u8(q[k]), lo, hi);
-      cv::v_uint32x4 a, b, c, d;
-      cv::v_expand(lo, a, b);
-      cv::v_expand(hi, c, d);
-      float* o = out + 16 * k;
-      cv::v_store(o, cv::v_cvt_f32(cv::v_reinterpret_as_s32(a)));
-      cv::v_store(o + 4, cv::v_cvt_f32(cv::v_reinterpret_as_s32(b)));
-      cv::v_store(o + 8, cv::v_cvt_f32(cv::v_reinterpret_as_s32(c)));
-      cv::v_store(o + 12, cv::v_cvt_f32(cv::v_reinterpret_as_s32(d)));
-    }
+    for (int k = 0; k < 4; ++k)
+      storeAsFloats(cv::v_reinterpret_as_u8(q[k]), out + 16 * k);
   }
   for (; x < width; ++x, out += 4)
     for (int r = 0; r < 4; ++r)

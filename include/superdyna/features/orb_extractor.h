@@ -6,9 +6,9 @@
 // in the level-0 image.
 //
 // Pyramid: level l is level l - 1 resized (cv::INTER_AREA, computed by AreaShrinker) to
-// round(size0 / scale_factor^l). A
-// level pixel (x, y) maps to the level-0 pixel ((x + 0.5) * sx - 0.5, (y + 0.5) * sy - 0.5) with
-// sx = width0 / width_l, sy = height0 / height_l (pixel centres, as cv::resize samples).
+// round(size0 / scale_factor^l). A level pixel (x, y) maps to the level-0 pixel
+// ((x + 0.5) * sx - 0.5, (y + 0.5) * sy - 0.5) with sx = width0 / width_l,
+// sy = height0 / height_l (pixel centres, as cv::resize samples).
 
 #include <opencv2/core.hpp>
 #include <string>
