@@ -10,7 +10,6 @@
 
 #include <benchmark/benchmark.h>
 
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
@@ -70,12 +69,11 @@ void BM_OrbPyramid(benchmark::State& state) {
   const auto& sample = stereoSample();
   if (!sample) return state.SkipWithError("EuRoC excerpt not found (SUPERDYNA_BENCH_EUROC)");
   const cv::Mat& image = sample->frame.image0;
-  std::vector<cv::Size> sizes{image.size()};
-  for (int l = 1; l < 8; ++l) {
-    const double scale = std::pow(1.2, l);
-    sizes.emplace_back(static_cast<int>(std::lround(image.cols / scale)),
-                       static_cast<int>(std::lround(image.rows / scale)));
-  }
+  features::OrbExtractor extractor;  // its pyramid's level sizes
+  extractor.extract(image);
+  std::vector<cv::Size> sizes;
+  for (const cv::Mat& level : extractor.pyramid())
+    sizes.push_back(level.size());
   std::vector<features::AreaShrinker> shrinkers;
   for (std::size_t l = 1; l < sizes.size(); ++l)
     shrinkers.emplace_back(sizes[l - 1], sizes[l]);
