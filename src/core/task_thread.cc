@@ -44,6 +44,16 @@ void TaskThread::wait() {
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
+bool TaskThread::outstanding() const {
+  const std::lock_guard lock(mutex_);
+  return outstanding_;
+}
+
+bool TaskThread::finished() const {
+  const std::lock_guard lock(mutex_);
+  return outstanding_ && finished_;
+}
+
 double TaskThread::cpuMs() const {
   const std::lock_guard lock(mutex_);
   return cpu_ms_;

@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <memory>
 #include <set>
 #include <stdexcept>
@@ -43,6 +44,18 @@ class BorrowedFactor final : public ceres::SizedCostFunction<2, 7, 3> {
   const optim::ReprojectionFactor* factor_;
 };
 
+/// Stops a solve between iterations once `abort` is set (an abandoned global BA).
+class AbortCallback final : public ceres::IterationCallback {
+ public:
+  explicit AbortCallback(const std::atomic<bool>* abort) : abort_(abort) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return abort_->load() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const std::atomic<bool>* abort_;
+};
+
 /// The state blocks of one keyframe. The pose block holds T_w_b (visual) or T_w_i (inertial).
 struct KeyFrameBlocks {
   optim::ImuStateParameters state;
@@ -51,13 +64,18 @@ struct KeyFrameBlocks {
   TimeNs t_ns = 0;
 };
 
+}  // namespace
+
+namespace detail {
+
+/// The problem of one BA in three steps: prepare() reads the map and builds the problem, solve()
+/// touches no map, write() writes the result (at once, or into a map that has moved on).
 class Problem {
  public:
   Problem(map::Map& map, const BundleAdjustmentWindow& window,
           const std::vector<optim::ReprojectionCamera>& cameras,
-          const std::map<map::KeyFrameId, RightObservations>& right,
           const BundleAdjustmentSettings& settings, const std::optional<BundleAdjustmentImu>& imu)
-      : map_(map), window_(window), right_(right), settings_(settings), imu_(imu) {
+      : map_(map), window_(window), settings_(settings), imu_(imu) {
     if (window.inertial && (!imu || imu->preintegrations == nullptr)) {
       throw std::invalid_argument("bundleAdjust: an inertial window needs the IMU context");
     }
@@ -72,37 +90,69 @@ class Problem {
     problem_ = std::make_unique<ceres::Problem>(problem_options_);
   }
 
-  BundleAdjustmentResult run() {
-    BundleAdjustmentResult result;
-    loadKeyFrames();
-    if (optimisedCount() == 0) return result;
-    const std::set<map::MapPointId> local = optimisedPoints();
-    loadFixedObservers(local);
-    holdOldestForGauge();
-    if (blocks_.size() < 2 || optimisedCount() == 0) return result;
-    loadPoints(local);
-    addReprojections(collectReprojections());
-    result.observations = static_cast<int>(observations_.size());
-    if (observations_.empty()) {
-      const map::Map::UpdateLock update = map_.updateLock();
-      result.outliers = removeInvalidAtStart();
-      return result;
-    }
-    setPoseManifolds();
-    if (window_.inertial) result.imu_edges = addInertialFactors();
-    if (!solve()) {
-      const map::Map::UpdateLock update = map_.updateLock();
-      result.outliers = removeInvalidAtStart();  // the state is left as it was
-      return result;
-    }
-    // One map update: readers under the map's read lock see the whole result or none of it.
+  /// Loads the state and builds the problem. `right` is read only here.
+  void prepare(const std::map<map::KeyFrameId, RightObservations>& right) {
+    right_ = &right;
+    stage_ = prepareStage();
+    right_ = nullptr;
+    result_.observations = static_cast<int>(observations_.size());
+  }
+
+  /// Solves a prepared problem; touches no map (the global BA runs it in a thread of its own).
+  /// `abort`: polled between iterations, true stops the solve (its solution is then not used).
+  void solve(const std::atomic<bool>* abort = nullptr) {
+    if (stage_ == Stage::kSolve && !solveProblem(abort)) stage_ = Stage::kRemoveInvalid;
+  }
+
+  /// Writes the solution as one map update: readers under the map's read lock see the whole
+  /// result or none of it. `moved_on`: the map has changed since prepare() (the global BA in its
+  /// own thread): the solved keyframes and points take the solution; the other keyframes (added
+  /// meanwhile) move with the correction of their temporal predecessor (its solution relative to
+  /// its pose now), the other points with that of their oldest observer; outliers still observed
+  /// are removed; every keyframe's correction is recorded (Map::recordCorrection), so poses held
+  /// outside the map follow. Keyframes and points removed meanwhile are skipped.
+  BundleAdjustmentResult write(bool moved_on) {
+    if (stage_ == Stage::kNothing) return result_;
     const map::Map::UpdateLock update = map_.updateLock();
-    writeBack();
-    result.outliers = removeInvalidAtStart() + removeOutliers();
-    return result;
+    if (stage_ != Stage::kSolve) {
+      result_.outliers = removeInvalidAtStart();  // no solution: the state stays as it was
+      return result_;
+    }
+    std::map<map::KeyFrameId, map::KeyFrameCorrection> corrections;
+    if (moved_on) {
+      corrections = moveKeyFrames();
+      movePoints(corrections);
+    } else {
+      writeBack();
+    }
+    result_.outliers = removeInvalidAtStart() + removeOutliers();
+    if (moved_on) recordCorrections(corrections);
+    return result_;
   }
 
  private:
+  /// What a prepared problem leaves to do.
+  enum class Stage {
+    kNothing,        ///< No keyframe or no pair to optimise: the map stays as it is.
+    kRemoveInvalid,  ///< No solution: only the observations behind a camera at the start go.
+    kSolve,          ///< Solve, then write the solution.
+  };
+
+  Stage prepareStage() {
+    loadKeyFrames();
+    if (optimisedCount() == 0) return Stage::kNothing;
+    const std::set<map::MapPointId> local = optimisedPoints();
+    loadFixedObservers(local);
+    holdOldestForGauge();
+    if (blocks_.size() < 2 || optimisedCount() == 0) return Stage::kNothing;
+    loadPoints(local);
+    addReprojections(collectReprojections());
+    if (observations_.empty()) return Stage::kRemoveInvalid;
+    setPoseManifolds();
+    if (window_.inertial) result_.imu_edges = addInertialFactors();
+    return Stage::kSolve;
+  }
+
   int optimisedCount() const {
     return static_cast<int>(std::count_if(blocks_.begin(), blocks_.end(),
                                           [](const auto& b) { return !b.second.fixed; }));
@@ -190,8 +240,8 @@ class Problem {
   }
 
   const RightObservations* rightOf(map::KeyFrameId id) const {
-    const auto it = right_.find(id);
-    return it == right_.end() ? nullptr : &it->second;
+    const auto it = right_->find(id);
+    return it == right_->end() ? nullptr : &it->second;
   }
 
   static bool hasRight(const RightObservations* right, std::size_t i) {
@@ -312,11 +362,15 @@ class Problem {
   }
 
   /// False (with a warning) when Ceres gives no usable solution; the state is then not written.
-  bool solve() {
-    const ceres::Solver::Options solver =
+  /// Also false, quietly, when `abort` stopped it.
+  bool solveProblem(const std::atomic<bool>* abort) {
+    ceres::Solver::Options solver =
         optim::quietSolverOptions(ceres::DENSE_SCHUR, settings_.iterations);
+    AbortCallback stop(abort);
+    if (abort != nullptr) solver.callbacks.push_back(&stop);
     ceres::Solver::Summary summary;
     ceres::Solve(solver, problem_.get(), &summary);
+    if (summary.termination_type == ceres::USER_FAILURE) return false;
     if (summary.IsSolutionUsable()) return true;
     spdlog::warn("{} bundle adjustment of {} keyframes failed, map left unchanged: {}",
                  window_.inertial ? "inertial" : "visual", optimisedCount(), summary.message);
@@ -328,19 +382,78 @@ class Problem {
     return window_.inertial ? pose * imu_->T_b_i.inverse() : pose;
   }
 
+  void writeKeyFrame(map::KeyFrameId id, const KeyFrameBlocks& blocks) {
+    map_.setKeyFramePose(id, bodyPose(blocks));
+    if (!window_.inertial) return;
+    const imu::Bias bias = blocks.state.bias();
+    const Eigen::Vector3d v_w(blocks.state.velocity[0], blocks.state.velocity[1],
+                              blocks.state.velocity[2]);
+    map_.setKeyFrameInertialState(id, v_w, bias.bg, bias.ba);
+  }
+
   void writeBack() {
-    for (const auto& [id, blocks] : blocks_) {
-      if (blocks.fixed) continue;
-      map_.setKeyFramePose(id, bodyPose(blocks));
-      if (window_.inertial) {
-        const imu::Bias bias = blocks.state.bias();
-        const Eigen::Vector3d v_w(blocks.state.velocity[0], blocks.state.velocity[1],
-                                  blocks.state.velocity[2]);
-        map_.setKeyFrameInertialState(id, v_w, bias.bg, bias.ba);
-      }
-    }
+    for (const auto& [id, blocks] : blocks_)
+      if (!blocks.fixed) writeKeyFrame(id, blocks);
     for (const auto& [id, p_w] : points_)
       map_.setMapPointPosition(id, p_w);
+  }
+
+  /// Solved keyframes take the solution, the others (not in the problem, added since prepare())
+  /// their predecessor's correction, by increasing id (time); fixed ones stay. Returns every
+  /// keyframe's correction.
+  std::map<map::KeyFrameId, map::KeyFrameCorrection> moveKeyFrames() {
+    std::map<map::KeyFrameId, map::KeyFrameCorrection> corrections;
+    map::KeyFrameCorrection last;
+    for (const map::KeyFrameId id : map_.keyFrameIds()) {
+      SE3d T_w_b;
+      map::KeyFrameId previous = map::kNoKeyFrame;
+      map_.readKeyFrame(id, [&](const map::KeyFrame& kf) {
+        T_w_b = kf.T_w_b;
+        previous = kf.previous;
+        last.t_ns = kf.t_ns;
+      });
+      const auto solved = blocks_.find(id);
+      if (solved != blocks_.end()) {
+        last.C = solved->second.fixed ? SE3d() : bodyPose(solved->second) * T_w_b.inverse();
+        if (!solved->second.fixed) writeKeyFrame(id, solved->second);
+      } else {
+        const auto from = corrections.find(previous);
+        if (from != corrections.end()) last.C = from->second.C;
+        map_.setKeyFramePose(id, last.C * T_w_b);
+        map_.rotateKeyFrameVelocity(id, last.C.rotation());
+      }
+      corrections[id] = last;
+    }
+    return corrections;
+  }
+
+  void recordCorrections(const std::map<map::KeyFrameId, map::KeyFrameCorrection>& corrections) {
+    map::MapCorrection record;
+    for (const auto& [id, correction] : corrections)
+      record.keyframes.push_back(correction);
+    std::stable_sort(record.keyframes.begin(), record.keyframes.end(),
+                     [](const auto& x, const auto& y) { return x.t_ns < y.t_ns; });
+    map_.recordCorrection(std::move(record));
+  }
+
+  /// Solved points take the solution, the others their oldest observer's correction.
+  void movePoints(const std::map<map::KeyFrameId, map::KeyFrameCorrection>& corrections) {
+    for (const map::MapPointId id : map_.mapPointIds()) {
+      const auto solved = points_.find(id);
+      if (solved != points_.end()) {
+        map_.setMapPointPosition(id, solved->second);
+      } else {
+        std::optional<std::pair<map::KeyFrameId, Eigen::Vector3d>> reference;
+        map_.readMapPoint(id, [&](const map::MapPoint& p) {
+          if (!p.observations.empty()) reference.emplace(p.observations.begin()->first, p.p_w);
+        });
+        if (!reference) continue;
+        const auto it = corrections.find(reference->first);
+        if (it != corrections.end())
+          map_.setMapPointPosition(id, it->second.apply(reference->second));
+      }
+      if (!map_.updateNormalAndDistances(id)) map_.eraseMapPoint(id);
+    }
   }
 
   /// Erases the left observations that could not be evaluated at the initial state; returns how
@@ -376,10 +489,13 @@ class Problem {
   }
 
   map::Map& map_;
-  const BundleAdjustmentWindow& window_;
-  const std::map<map::KeyFrameId, RightObservations>& right_;
+  const BundleAdjustmentWindow window_;
+  /// The right observations, while prepare() runs.
+  const std::map<map::KeyFrameId, RightObservations>* right_ = nullptr;
   BundleAdjustmentSettings settings_;
-  const std::optional<BundleAdjustmentImu>& imu_;
+  const std::optional<BundleAdjustmentImu> imu_;  ///< Its preintegrations: used by prepare() only.
+  Stage stage_ = Stage::kNothing;
+  BundleAdjustmentResult result_;
   std::vector<optim::ReprojectionCamera> cameras_;
   ceres::Problem::Options problem_options_;
   std::unique_ptr<ceres::Problem> problem_;
@@ -390,7 +506,7 @@ class Problem {
   std::vector<BaObservation> invalid_at_start_;  ///< Not in the problem: behind the camera.
 };
 
-}  // namespace
+}  // namespace detail
 
 BundleAdjustmentWindow fullInertialWindow(const std::vector<map::KeyFrameId>& ids,
                                           double bias_prior_sigma_gyro,
@@ -409,7 +525,31 @@ BundleAdjustmentResult bundleAdjust(map::Map& map, const BundleAdjustmentWindow&
                                     const std::map<map::KeyFrameId, RightObservations>& right,
                                     const BundleAdjustmentSettings& settings,
                                     const std::optional<BundleAdjustmentImu>& imu) {
-  return Problem(map, window, cameras, right, settings, imu).run();
+  detail::Problem problem(map, window, cameras, settings, imu);
+  problem.prepare(right);
+  problem.solve();
+  return problem.write(false);
+}
+
+DeferredBundleAdjustment::DeferredBundleAdjustment(
+    map::Map& map, const BundleAdjustmentWindow& window,
+    const std::vector<optim::ReprojectionCamera>& cameras,
+    const std::map<map::KeyFrameId, RightObservations>& right,
+    const BundleAdjustmentSettings& settings, const std::optional<BundleAdjustmentImu>& imu)
+    : problem_(std::make_unique<detail::Problem>(map, window, cameras, settings, imu)),
+      generation_(map.correctionCount()) {
+  const map::Map::ReadLock reading = map.readLock();  // a state no update is half-way through
+  problem_->prepare(right);
+}
+
+DeferredBundleAdjustment::~DeferredBundleAdjustment() = default;
+
+void DeferredBundleAdjustment::solve() {
+  problem_->solve(&abort_);
+}
+
+BundleAdjustmentResult DeferredBundleAdjustment::apply() {
+  return problem_->write(true);
 }
 
 }  // namespace superdyna::mapping

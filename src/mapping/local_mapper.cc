@@ -5,6 +5,7 @@
 #include <cmath>
 #include <memory>
 #include <set>
+#include <utility>
 
 #include "superdyna/core/error.h"
 #include "superdyna/core/time.h"
@@ -81,7 +82,12 @@ void LocalMapper::addKeyFrame(map::KeyFrameId id, RightObservations right,
     recent_points_.emplace_back(point, id);
 }
 
+LocalMapper::~LocalMapper() {
+  abandonGlobalBundleAdjust();
+}
+
 void LocalMapper::reset() {
+  abandonGlobalBundleAdjust();
   right_.clear();
   recent_points_.clear();
   if (preintegrations_) preintegrations_->clear();
@@ -193,29 +199,75 @@ BundleAdjustmentResult LocalMapper::fullInertialBundleAdjust(map::Map& map, doub
                       BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
 }
 
-BundleAdjustmentResult LocalMapper::globalBundleAdjust(map::Map& map) {
-  if (options_.global_ba_iterations == 0) return {};
+std::optional<BundleAdjustmentWindow> LocalMapper::globalWindow(const map::Map& map) const {
+  if (options_.global_ba_iterations == 0) return std::nullopt;
   const std::vector<map::KeyFrameId> ids = map.keyFrameIds();
-  if (ids.size() < 2) return {};
+  if (ids.size() < 2) return std::nullopt;
+  if (initializations_ > 0)
+    return fullInertialWindow(ids, bias_prior_sigma_gyro_, bias_prior_sigma_acc_);
+  BundleAdjustmentWindow window;
+  window.fixed = {ids.front()};
+  window.optimised.assign(ids.begin() + 1, ids.end());
+  // A monocular map's scale gauge: the second keyframe is held too.
+  if (cameras_.size() == 1) window.min_fixed = 2;
+  return window;
+}
+
+std::optional<BundleAdjustmentImu> LocalMapper::globalImuContext() {
+  if (initializations_ == 0) return std::nullopt;
+  return BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_};
+}
+
+BundleAdjustmentResult LocalMapper::globalBundleAdjust(map::Map& map) {
+  const std::optional<BundleAdjustmentWindow> window = globalWindow(map);
+  if (!window) return {};
   const auto start = std::chrono::steady_clock::now();
-  BundleAdjustmentResult result;
-  if (initializations_ > 0) {
-    const BundleAdjustmentWindow window =
-        fullInertialWindow(ids, bias_prior_sigma_gyro_, bias_prior_sigma_acc_);
-    result = bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations),
-                          BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
-  } else {
-    BundleAdjustmentWindow window;
-    window.fixed = {ids.front()};
-    window.optimised.assign(ids.begin() + 1, ids.end());
-    // A monocular map's scale gauge: the second keyframe is held too.
-    if (cameras_.size() == 1) window.min_fixed = 2;
-    result = bundleAdjust(map, window, cameras_, right_, settings(options_.global_ba_iterations));
-  }
+  const BundleAdjustmentResult result = bundleAdjust(
+      map, *window, cameras_, right_, settings(options_.global_ba_iterations), globalImuContext());
   ++global_ba_runs_;
-  global_ba_ms_ +=
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  global_ba_ms_ += millisecondsSince(start);
   return result;
+}
+
+void LocalMapper::startGlobalBundleAdjust(map::Map& map) {
+  if (global_ba_thread_.outstanding()) {
+    global_ba_requested_ = true;  // started once the running one has been taken
+    return;
+  }
+  const std::optional<BundleAdjustmentWindow> window = globalWindow(map);
+  if (!window) return;
+  const auto start = std::chrono::steady_clock::now();
+  global_ba_ = std::make_unique<DeferredBundleAdjustment>(
+      map, *window, cameras_, right_, settings(options_.global_ba_iterations), globalImuContext());
+  global_ba_ms_ += millisecondsSince(start);
+  global_ba_thread_.run([ba = global_ba_.get(), &solve_ms = global_ba_solve_ms_] {
+    const auto solve_start = std::chrono::steady_clock::now();
+    ba->solve();
+    solve_ms = millisecondsSince(solve_start);
+  });
+}
+
+void LocalMapper::applyGlobalBundleAdjust(map::Map& map, bool wait) {
+  while (global_ba_thread_.outstanding() && (wait || global_ba_thread_.finished())) {
+    global_ba_thread_.wait();
+    const std::unique_ptr<DeferredBundleAdjustment> ba = std::move(global_ba_);
+    if (ba->generation() == map.correctionCount()) {
+      const auto start = std::chrono::steady_clock::now();
+      ba->apply();
+      global_ba_ms_ += global_ba_solve_ms_ + millisecondsSince(start);
+      ++global_ba_runs_;
+    } else {
+      ++global_bas_dropped_;  // a loop corrected the map meanwhile: the solution would undo it
+    }
+    if (std::exchange(global_ba_requested_, false)) startGlobalBundleAdjust(map);
+  }
+}
+
+void LocalMapper::abandonGlobalBundleAdjust() {
+  if (global_ba_) global_ba_->abort();
+  global_ba_thread_.wait();
+  global_ba_.reset();
+  global_ba_requested_ = false;
 }
 
 double LocalMapper::mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const {

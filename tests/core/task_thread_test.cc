@@ -71,6 +71,26 @@ TEST(TaskThread, RefusesASecondJobBeforeTheFirstIsWaitedFor) {
   helper.wait();
 }
 
+TEST(TaskThread, TellsWhetherItsJobIsOutstandingAndFinishedWithoutWaiting) {
+  TaskThread helper;
+  EXPECT_FALSE(helper.outstanding());
+  EXPECT_FALSE(helper.finished());
+  std::atomic<bool> release{false};
+  helper.run([&] {
+    while (!release)
+      std::this_thread::yield();
+  });
+  EXPECT_TRUE(helper.outstanding());
+  EXPECT_FALSE(helper.finished());  // held until released
+  release = true;
+  while (!helper.finished())
+    std::this_thread::yield();
+  EXPECT_TRUE(helper.outstanding());  // finished, not yet waited for
+  helper.wait();
+  EXPECT_FALSE(helper.outstanding());
+  EXPECT_FALSE(helper.finished());
+}
+
 TEST(TaskThread, CountsTheCpuTimeOfItsJobs) {
   TaskThread helper;
   EXPECT_EQ(helper.cpuMs(), 0.0);

@@ -366,6 +366,63 @@ TEST(BundleAdjustmentTest, AReaderUnderTheReadLockSeesTheMapBeforeOrAfterTheBaNe
   EXPECT_TRUE(sameState(stateOf(map), after));
 }
 
+TEST(BundleAdjustmentTest, ASolutionAppliedLaterCarriesItsChangeToTheKeyFramesMadeMeanwhile) {
+  // A global BA solved away from the map (DeferredBundleAdjustment): keyframes 2-9 are solved,
+  // 10 and 11 stand for keyframes the tracker added after the state was loaded. Every keyframe
+  // from 2 on starts 1-2 cm off the truth; keyframe 11 moves once more after loading (a local BA
+  // meanwhile). Applied, the solved keyframes take the solution, 10 and 11 move with keyframe 9's
+  // correction (the solution relative to its pose at apply), velocities rotated with it, and the
+  // corrections are recorded for the poses held outside the map.
+  test::MappingScene scene = test::makeMappingScene({});
+  const std::vector<map::KeyFrameId>& ids = scene.ids;
+  for (std::size_t k = 2; k < ids.size(); ++k) {
+    const double angle = static_cast<double>(k);
+    const SE3d error(expSO3(Eigen::Vector3d(0.0, 0.0, 0.002 * std::sin(angle))),
+                     0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5));
+    scene.map->setKeyFramePose(ids[k], error * scene.truth[k].T_w_b);
+    scene.map->setKeyFrameInertialState(ids[k], Eigen::Vector3d(1.0, 0.5, -0.2),
+                                        Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  }
+  BundleAdjustmentWindow window;
+  window.fixed = {ids[0], ids[1]};  // a monocular map's gauge: position and scale
+  window.optimised.assign(ids.begin() + 2, ids.begin() + 10);
+  BundleAdjustmentSettings settings;
+  settings.iterations = 20;
+  const int generation = scene.map->correctionCount();
+  DeferredBundleAdjustment ba(*scene.map, window, {scene.camera}, {}, settings);
+  EXPECT_EQ(ba.generation(), generation);
+  const SE3d meanwhile(expSO3(Eigen::Vector3d(0.0, 0.001, 0.0)), Eigen::Vector3d(0.0, 0.003, 0.0));
+  scene.map->setKeyFramePose(ids[11], meanwhile * *scene.map->keyFramePose(ids[11]));
+  const MapState loaded = stateOf(*scene.map);
+  ba.solve();
+  EXPECT_TRUE(sameState(stateOf(*scene.map), loaded));  // solving touches no map
+  const BundleAdjustmentResult result = ba.apply();
+  EXPECT_GT(result.observations, 300);
+
+  double solved_error = 0.0;
+  for (std::size_t k = 2; k < 10; ++k) {
+    solved_error = std::max(solved_error,
+                            (scene.map->keyFramePose(ids[k])->t - scene.truth[k].T_w_b.t).norm());
+  }
+  EXPECT_LT(solved_error, 0.5e-3);
+  const SE3d C = *scene.map->keyFramePose(ids[9]) * loaded.keyframes.at(ids[9]).T_w_b.inverse();
+  EXPECT_GT(C.t.norm(), 0.005);  // keyframe 9 did move
+  for (const std::size_t k : {std::size_t{10}, std::size_t{11}}) {
+    const map::KeyFrame kf = *scene.map->keyFrame(ids[k]);
+    const SE3d expected = C * loaded.keyframes.at(ids[k]).T_w_b;
+    EXPECT_LT((kf.T_w_b.t - expected.t).norm(), 1e-12) << "keyframe " << k;
+    EXPECT_LT(kf.T_w_b.q.angularDistance(expected.q), 1e-12) << "keyframe " << k;
+    EXPECT_LT((kf.v_w - C.rotation() * loaded.keyframes.at(ids[k]).v_w).norm(), 1e-12);
+  }
+  EXPECT_EQ(scene.map->keyFramePose(ids[0])->t, loaded.keyframes.at(ids[0]).T_w_b.t);  // held
+  ASSERT_EQ(scene.map->correctionCount(), generation + 1);
+  const map::MapCorrection recorded = scene.map->correctionsSince(generation).front();
+  const map::KeyFrameCorrection newest = recorded.correctionAt(scene.map->keyFrame(ids[11])->t_ns);
+  EXPECT_LT((newest.C.t - C.t).norm(), 1e-12);
+  EXPECT_EQ(recorded.keyframes.size(), ids.size());
+  EXPECT_EQ(scene.map->consistencyError(), "");
+}
+
 TEST(BundleAdjustmentTest, InertialWindowNeedsTheImuContext) {
   test::MappingScene scene = test::makeMappingScene({});
   BundleAdjustmentWindow window;

@@ -149,6 +149,80 @@ TEST(LocalMapper, GlobalBaAfterALoopMovesEveryKeyFrameBackAndHoldsTheGauge) {
   EXPECT_EQ(scene.map->consistencyError(), "");
 }
 
+/// Moves the keyframes `ids` 1-2 cm off their poses (each another way).
+void displace(test::MappingScene& scene, const std::vector<map::KeyFrameId>& ids) {
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    SE3d T_w_b = *scene.map->keyFramePose(ids[k]);
+    const double angle = static_cast<double>(k);
+    T_w_b.t += 0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5);
+    scene.map->setKeyFramePose(ids[k], T_w_b);
+  }
+}
+
+/// Records an empty correction, as a loop closure records its own.
+void recordLoopCorrection(map::Map& map) {
+  const map::Map::UpdateLock update = map.updateLock();
+  map.recordCorrection({});
+}
+
+TEST(LocalMapper, GlobalBaOnItsOwnThreadLandsOnceTakenAndIsDroppedAfterALaterLoop) {
+  // The concurrent pipeline's global BA: solved in the mapper's own thread, applied where the
+  // mapping jobs run. Its result equals the inline one's; a solution loaded before a later loop
+  // moved the map is dropped; a request made while one runs starts once that one is taken.
+  test::MappingScene scene = test::makeMappingScene({});
+  LocalMapperOptions options = windowOfFour(0);
+  options.global_ba_iterations = 20;
+  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
+  displace(scene, moved);
+  const double before = largestPositionError(scene, moved);
+  LocalMapper mapper(options, {scene.camera});
+
+  mapper.startGlobalBundleAdjust(*scene.map);
+  mapper.applyGlobalBundleAdjust(*scene.map, true);
+  const double after = largestPositionError(scene, moved);
+  std::printf("global BA in its thread: largest position error %.1f mm -> %.3f mm\n", 1e3 * before,
+              1e3 * after);
+  EXPECT_LT(after, 0.5e-3);
+  EXPECT_EQ(mapper.globalBaRuns(), 1);
+  EXPECT_EQ(scene.map->correctionCount(), 1);  // recorded for the tracker's poses
+
+  displace(scene, moved);
+  const double displaced = largestPositionError(scene, moved);
+  mapper.startGlobalBundleAdjust(*scene.map);
+  recordLoopCorrection(*scene.map);  // a loop closed while it was solved
+  mapper.applyGlobalBundleAdjust(*scene.map, true);
+  EXPECT_EQ(mapper.globalBasDropped(), 1);
+  EXPECT_EQ(mapper.globalBaRuns(), 1);
+  EXPECT_EQ(largestPositionError(scene, moved), displaced);  // the map as the loop left it
+
+  mapper.startGlobalBundleAdjust(*scene.map);
+  mapper.startGlobalBundleAdjust(*scene.map);  // the later loop's request, while it runs
+  recordLoopCorrection(*scene.map);
+  mapper.applyGlobalBundleAdjust(*scene.map, true);
+  EXPECT_EQ(mapper.globalBasDropped(), 2);
+  EXPECT_EQ(mapper.globalBaRuns(), 2);  // the request made meanwhile ran on the new state
+  EXPECT_LT(largestPositionError(scene, moved), 0.5e-3);
+  EXPECT_EQ(scene.map->consistencyError(), "");
+}
+
+TEST(LocalMapper, AnAbandonedGlobalBaNeverLands) {
+  // Before a map is dropped (a reset) the tracker abandons its global BA: nothing is applied
+  // later, not even to the next map.
+  test::MappingScene scene = test::makeMappingScene({});
+  LocalMapperOptions options = windowOfFour(0);
+  options.global_ba_iterations = 20;
+  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
+  displace(scene, moved);
+  const double before = largestPositionError(scene, moved);
+  LocalMapper mapper(options, {scene.camera});
+  mapper.startGlobalBundleAdjust(*scene.map);
+  mapper.abandonGlobalBundleAdjust();
+  mapper.applyGlobalBundleAdjust(*scene.map, true);
+  EXPECT_EQ(mapper.globalBaRuns(), 0);
+  EXPECT_EQ(largestPositionError(scene, moved), before);
+  EXPECT_EQ(scene.map->correctionCount(), 0);
+}
+
 TEST(LocalMapperOptions, RejectsANegativeObserverCount) {
   LocalMapperOptions options;
   options.fixed_observer_keyframes = -1;

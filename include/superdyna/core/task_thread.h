@@ -5,7 +5,9 @@
 // thread starts with the first job and lives until the TaskThread is destroyed, so the per-thread
 // state of libraries used by the jobs (e.g. ONNX Runtime's scratch buffers) is set up once.
 //
-// Single owner: run(), wait() and the destructor must be called from one thread.
+// Single owner: run(), wait() and the destructor must not be called concurrently (one thread, or
+// threads that take turns, such as the mapping thread and the tracker while the mapping thread is
+// idle).
 
 #include <condition_variable>
 #include <exception>
@@ -33,6 +35,10 @@ class TaskThread {
   /// Blocks until the job given to run() has finished and rethrows its exception, if any. Returns
   /// at once when no job is outstanding.
   void wait();
+  /// A job was given to run() and not yet waited for.
+  bool outstanding() const;
+  /// The outstanding job has finished: wait() would return at once.
+  bool finished() const;
   /// CPU time the helper thread has spent in jobs so far [ms].
   double cpuMs() const;
 

@@ -19,7 +19,9 @@
 // The state is read and solved without a lock; everything written afterwards is one map update
 // (Map::updateLock()), so the caller must not hold the map's read or update lock.
 
+#include <atomic>
 #include <map>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -92,5 +94,46 @@ BundleAdjustmentResult bundleAdjust(map::Map& map, const BundleAdjustmentWindow&
                                     const std::map<map::KeyFrameId, RightObservations>& right,
                                     const BundleAdjustmentSettings& settings,
                                     const std::optional<BundleAdjustmentImu>& imu = std::nullopt);
+
+namespace detail {
+class Problem;
+}
+
+/// bundleAdjust() in three steps, so that its solve runs away from the map (the global BA in a
+/// thread of its own, ORB-SLAM3's): the constructor loads the state under the map's read lock,
+/// solve() touches no map and may run in any thread, apply() writes the solution into the map as
+/// it is by then, one map update: solved keyframes and points take their solution, keyframes
+/// added meanwhile move with their temporal predecessor's correction (velocities rotated with
+/// it), points left out of the solve with their oldest observer's, outliers still observed are
+/// removed; every keyframe's correction is recorded (map::Map::recordCorrection), so poses held
+/// outside the map follow. The object keeps a reference to the map: it must not outlive it.
+class DeferredBundleAdjustment {
+ public:
+  /// As bundleAdjust(); the caller holds neither of the map's locks. `right` and the IMU's
+  /// preintegration cache are used here only.
+  DeferredBundleAdjustment(map::Map& map, const BundleAdjustmentWindow& window,
+                           const std::vector<optim::ReprojectionCamera>& cameras,
+                           const std::map<map::KeyFrameId, RightObservations>& right,
+                           const BundleAdjustmentSettings& settings,
+                           const std::optional<BundleAdjustmentImu>& imu = std::nullopt);
+  ~DeferredBundleAdjustment();
+  DeferredBundleAdjustment(const DeferredBundleAdjustment&) = delete;
+  DeferredBundleAdjustment& operator=(const DeferredBundleAdjustment&) = delete;
+
+  void solve();
+  /// Makes a solve() running in another thread stop at its next iteration; apply() then leaves
+  /// the map unchanged but for the observations that were behind a camera at the start.
+  void abort() { abort_ = true; }
+  /// Call after solve() returned, where the map's updates are made; the caller holds neither lock.
+  BundleAdjustmentResult apply();
+  /// The map's correction count (map::Map::correctionCount) when the state was loaded: a solution
+  /// older than a correction made since (a loop closure) must not be applied.
+  int generation() const { return generation_; }
+
+ private:
+  std::unique_ptr<detail::Problem> problem_;
+  int generation_ = 0;
+  std::atomic<bool> abort_ = false;
+};
 
 }  // namespace superdyna::mapping

@@ -21,12 +21,14 @@
 
 #include <Eigen/Core>
 #include <map>
+#include <memory>
 #include <optional>
 #include <utility>
 #include <vector>
 
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
+#include "superdyna/core/task_thread.h"
 #include "superdyna/io/calibration.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/bundle_adjustment.h"
@@ -99,6 +101,10 @@ class LocalMapper {
   /// IMU of the rig (enables the inertial stages when options.inertial).
   LocalMapper(const LocalMapperOptions& options, std::vector<optim::ReprojectionCamera> cameras,
               const std::optional<sensors::ImuCalibration>& imu = std::nullopt);
+  /// Stops a global BA still being solved.
+  ~LocalMapper();
+  LocalMapper(const LocalMapper&) = delete;
+  LocalMapper& operator=(const LocalMapper&) = delete;
 
   /// Registers a keyframe's right observations and points it created (for culling).
   void addKeyFrame(map::KeyFrameId id, RightObservations right,
@@ -126,9 +132,26 @@ class LocalMapper {
   /// meanwhile keep their poses (ORB-SLAM propagates the global BA's change to them; these
   /// corrections are millimetres, after the pose graph has closed the loop).
   BundleAdjustmentResult globalBundleAdjust(map::Map& map);
-  /// Global BAs run so far and their summed wall time [ms] (read once the mapping jobs are done).
+  /// The concurrent pipeline's global BA, ORB-SLAM3's: the problem of globalBundleAdjust() is
+  /// loaded here, where the mapping jobs run, and solved in a thread of its own that neither
+  /// tracking nor local mapping waits for; applyGlobalBundleAdjust() writes it into the map as it
+  /// is by then (DeferredBundleAdjustment). A request while one is being solved starts once that
+  /// one has been taken.
+  void startGlobalBundleAdjust(map::Map& map);
+  /// Where the mapping jobs run: applies a global BA whose solve has finished (with `wait`: waits
+  /// for a running one, and for the one requested meanwhile), or drops it when a correction
+  /// (another loop) has moved the map since its state was loaded: its solution would undo it.
+  void applyGlobalBundleAdjust(map::Map& map, bool wait);
+  /// Stops a global BA being solved and forgets it and any request (before its map goes);
+  /// returns once its thread is idle. Called from the thread that runs the mapping jobs, or from
+  /// another while none runs.
+  void abandonGlobalBundleAdjust();
+  /// Global BAs applied so far and their summed time [ms] (wall time of loading, solving and
+  /// applying; read once the mapping jobs are done).
   int globalBaRuns() const { return global_ba_runs_; }
   double globalBaMilliseconds() const { return global_ba_ms_; }
+  /// Global BAs solved in their own thread and dropped (a loop corrected the map meanwhile).
+  int globalBasDropped() const { return global_bas_dropped_; }
 
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return initializations_ > 0; }
@@ -143,6 +166,10 @@ class LocalMapper {
   BundleAdjustmentResult inertialBundleAdjust(map::Map& map, map::KeyFrameId newest);
   BundleAdjustmentResult fullInertialBundleAdjust(map::Map& map, double bias_sigma_gyro,
                                                   double bias_sigma_acc);
+  /// The global BA's problem: every keyframe (inertial once initialised); none without
+  /// iterations or with fewer than 2 keyframes.
+  std::optional<BundleAdjustmentWindow> globalWindow(const map::Map& map) const;
+  std::optional<BundleAdjustmentImu> globalImuContext();
   void cullRecentPoints(map::Map& map, map::KeyFrameId newest);
   double mapAgeSeconds(const map::Map& map, map::KeyFrameId newest) const;
 
@@ -157,6 +184,11 @@ class LocalMapper {
   int initializations_ = 0;  ///< Inertial (re-)initialisations applied to the current map.
   int global_ba_runs_ = 0;
   double global_ba_ms_ = 0.0;
+  int global_bas_dropped_ = 0;
+  std::unique_ptr<DeferredBundleAdjustment> global_ba_;  ///< Solving or solved in its thread.
+  bool global_ba_requested_ = false;                     ///< Another loop asked for one meanwhile.
+  double global_ba_solve_ms_ = 0.0;                      ///< The last solve's wall time.
+  TaskThread global_ba_thread_;  ///< Last: ends (waiting for its job) before the state it uses.
   /// The bias prior of the latest full VI BA [rad/s], [m/s^2] (the global BA keeps it).
   double bias_prior_sigma_gyro_ = 0.0;
   double bias_prior_sigma_acc_ = 0.0;
