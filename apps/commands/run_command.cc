@@ -354,14 +354,14 @@ void printLoops(const system::System& slam, const Trajectory& gt, const SE3d& T_
       "not applied); per keyframe: "
       "detection {:.2f} ms, verification {:.2f} ms; pose graph + correction + fusion {:.1f} ms "
       "per loop; index {} descriptors ({:.1f} MB with the graph's links) of {} keyframes, "
-      "rebuilt {} times; {} global BAs after loops ({:.0f} ms each)\n",
+      "rebuilt {} times; {} global BAs after loops ({:.0f} ms each), {} dropped\n",
       loops.loops.size(), loops.keyframes, loops.skipped, loops.verifications, loops.rejected[0],
       loops.rejected[1], loops.rejected[2], loops.rejected[3], loops.rejected[4],
       loops.loops_dropped, perKeyFrame(loops.detection_ms), perKeyFrame(loops.verification_ms),
       loops.loops.empty() ? 0.0 : loops.correction_ms / static_cast<double>(loops.loops.size()),
       loops.index_descriptors, static_cast<double>(loops.index_bytes) / 1e6, loops.index_keyframes,
       loops.index_rebuilds, loops.global_bas,
-      loops.global_bas > 0 ? loops.global_ba_ms / loops.global_bas : 0.0);
+      loops.global_bas > 0 ? loops.global_ba_ms / loops.global_bas : 0.0, loops.global_bas_dropped);
   int false_loops = 0;
   int checked = 0;
   for (const loop::LoopClosure& l : loops.loops) {

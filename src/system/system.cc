@@ -228,6 +228,7 @@ LoopSummary System::loopSummary() const {
   LoopSummary summary = loop_ ? loop_->summary() : LoopSummary{};
   summary.global_bas = tracker_.mapper().globalBaRuns();
   summary.global_ba_ms = tracker_.mapper().globalBaMilliseconds();
+  summary.global_bas_dropped = tracker_.mapper().globalBasDropped();
   return summary;
 }
 
@@ -455,6 +456,7 @@ void System::finish() {
   try {
     mapping_->finish();
     if (loop_) loop_->finish();
+    tracker_.finishGlobalBundleAdjust();
   } catch (...) {
     account();
     throw;

@@ -562,15 +562,25 @@ void Tracker::addKeyFrameAndMap(const Frame& frame, const std::vector<map::MapPo
   result.keyframe = true;
   KeyFrameObserver* observer = mapSettled() ? observer_ : nullptr;
   const bool inertial = inertialInitialized();
-  const auto job = [this, map = map_.get(), id, observer, inertial] {
+  // With a mapping thread, the global BA after a loop is solved in a thread of its own and
+  // applied by a later job; sequentially, at once (bit-identical runs).
+  const bool threaded = mapping_sink_ != nullptr;
+  const auto job = [this, map = map_.get(), id, observer, inertial, threaded] {
+    if (threaded) mapper_.applyGlobalBundleAdjust(*map, false);
     mapper_.processKeyFrame(*map, id);
-    if (observer && observer->keyFrameMapped(*map, id, inertial)) mapper_.globalBundleAdjust(*map);
+    if (!observer || !observer->keyFrameMapped(*map, id, inertial)) return;
+    if (threaded) {
+      mapper_.startGlobalBundleAdjust(*map);
+    } else {
+      mapper_.globalBundleAdjust(*map);
+    }
   };
   if (mapping_sink_) {
     mapping_sink_->submit(job);
-    if (options_.mono_inertial_wait_for_keyframe_ba && isMonocular() && inertialInitialized()) {
-      mapping_sink_->waitIdle();  // the next predictions start from this keyframe's refined state
-      followMapCorrections();     // the keyframe's pose below already has them
+    if (options_.mono_inertial_wait_for_keyframe_ba && isMonocular() && imu_) {
+      // The next predictions start from this keyframe's refined state and match its new points.
+      mapping_sink_->waitIdle();
+      followMapCorrections();  // the keyframe's pose below already has them
       result.T_w_b = map_->keyFramePose(id).value_or(result.T_w_b);
     }
   } else {
@@ -677,6 +687,11 @@ std::unique_ptr<map::Map> Tracker::newMap() const {
 void Tracker::releaseMap() {
   if (mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
   if (observer_) observer_->mapReset();                // nor the observer's own threads
+  mapper_.abandonGlobalBundleAdjust();                 // nor the global BA's
+}
+
+void Tracker::finishGlobalBundleAdjust() {
+  if (has_map_) mapper_.applyGlobalBundleAdjust(*map_, true);
 }
 
 void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {

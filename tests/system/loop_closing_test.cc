@@ -80,6 +80,8 @@ const fs::path& aliasedCircleSequence() {
 struct LoopRun {
   double ate_m = 0.0;
   double end_drift_m = 0.0;  ///< Position error of the last pose relative to the first.
+  std::size_t lost_frames = 0;
+  int resets = 0;
   LoopSummary loops;
   Trajectory ground_truth;
   SE3d T_b_c;  ///< The left camera's.
@@ -134,6 +136,8 @@ LoopRun runOn(const fs::path& sequence, const SystemOptions& options) {
   LoopRun run;
   run.ate_m = result.ate_trans.rmse;
   run.loops = slam.loopSummary();
+  run.lost_frames = slam.lostFrames();
+  run.resets = slam.resets();
   run.ground_truth = source->groundTruth();
   run.T_b_c = source->camera0().T_b_c;
   run.end_drift_m = endDrift(run.ground_truth, slam.trajectory(), result.alignment.s,
@@ -226,6 +230,34 @@ TEST(LoopClosing, MonoInertialClosesTheWobblingCircleOnceItsScaleIsSettled) {
   std::cout << "mono-inertial: ATE " << off.ate_m << " m without loop closing, " << on.ate_m
             << " m with " << on.loops.loops.size() << " loops; end drift " << off.end_drift_m
             << " m without, " << on.end_drift_m << " m with\n";
+}
+
+// Concurrent mono-inertial tracking waits for each keyframe's mapping job, before the IMU is
+// initialised too: the wobbling circle turns fast, and frames tracked while the mapper has not yet
+// triangulated the new keyframe's points ran out of map points (measured without that wait, 8
+// runs outside the tests: 4 lost track about 0.6 s after the keyframe at 2 s and reset the map,
+// ATE 13-25 m). Three runs, so that a return of that failure is all but certain to show. The
+// global BA after the loop runs in a thread of its own that tracking does not wait for, and lands.
+TEST(LoopClosing, MonoInertialConcurrentTracksTheWobblingCircleAndLandsTheGlobalBa) {
+  const SystemOptions shipped =
+      loadSystemOptions(fs::path(SUPERDYNA_SOURCE_DIR) / "configs" / "euroc_mono_inertial.yaml");
+  for (int run = 0; run < 3; ++run) {
+    const LoopRun on = runOn(wobblingCircleSequence(),
+                             circleOptions(shipped, SensorMode::kMonoInertial, true, false));
+    EXPECT_EQ(on.lost_frames, 0u) << "run " << run;
+    EXPECT_EQ(on.resets, 0) << "run " << run;
+    ASSERT_GE(on.loops.loops.size(), 1u) << "run " << run;
+    expectTrueLoops(on);
+    EXPECT_GE(on.loops.global_bas, 1) << "run " << run;
+    // Measured: ATE 7.2 mm in each of 8 runs outside the tests (the global BA inline); the end
+    // drift as in the deterministic test above, 3.5 mm with the global BA, 40 mm without a loop.
+    EXPECT_LT(on.ate_m, 0.03) << "run " << run;
+    EXPECT_LT(on.end_drift_m, 0.02) << "run " << run;
+    std::cout << "mono-inertial, concurrent, run " << run << ": ATE " << on.ate_m << " m, "
+              << on.lost_frames << " frames lost, " << on.loops.loops.size() << " loops, "
+              << on.loops.global_bas << " global BAs landed (" << on.loops.global_bas_dropped
+              << " dropped), end drift " << on.end_drift_m << " m\n";
+  }
 }
 
 // A monocular map's scale drifts: its loops are similarities (Sim(3) RANSAC, 7-DoF pose graph),

@@ -46,6 +46,9 @@ struct LoopSummary {
   int index_rebuilds = 0;           ///< Rebuilds of the graph index without culled keyframes.
   int global_bas = 0;               ///< Global BAs after loops (mapping.global_ba_iterations) ...
   double global_ba_ms = 0.0;        ///< ... and their summed wall time.
+  /// Global BAs solved in their own thread (concurrent) and dropped: a later loop had moved the
+  /// map.
+  int global_bas_dropped = 0;
 };
 
 class LoopStage final : public tracking::KeyFrameObserver {

@@ -81,9 +81,11 @@ struct TrackerOptions {
   /// Monocular with a mapping thread: a keyframe wanted while the mapper is busy waits for it
   /// (true) or is refused unless tracking is weak or the last keyframe is overdue (false).
   bool mono_wait_for_mapping = true;
-  /// Monocular with a mapping thread, once the IMU is initialised: tracking waits for the local
-  /// BA of each new keyframe. The IMU prediction (and its pose prior) starts from the newest
+  /// Mono-inertial with a mapping thread: tracking waits for each new keyframe's mapping job.
+  /// Once the IMU is initialised, the IMU prediction (and its pose prior) starts from the newest
   /// keyframe's state; unrefined (tracked pose, predicted velocity), it lost track on V1_02.
+  /// Before, the keyframe's new points are triangulated there: without them, on a fast turn
+  /// tracking ran out of map points (the loop tests' wobbling circle lost track in half the runs).
   bool mono_inertial_wait_for_keyframe_ba = true;
   int keyframe_min_stereo = 50;            ///< Stereo keypoints a new keyframe needs, >= 0.
   double close_depth_baselines = 40.0;     ///< New points: depth below this many baselines, > 0.
@@ -255,7 +257,9 @@ class MappingSink {
 /// the mapping jobs (inside track() without a MappingSink): the loop closer. It may change the
 /// map (as one map update) and record the change with map::Map::recordCorrection(); the tracker
 /// moves its own state (last pose, velocity) and the poses it reports with it, and after a
-/// correction runs the mapper's global BA (mapping::LocalMapper::globalBundleAdjust).
+/// correction runs the mapper's global BA (mapping::LocalMapper::globalBundleAdjust; with a
+/// MappingSink in a thread of its own, startGlobalBundleAdjust, applied by a later mapping job or
+/// by finishGlobalBundleAdjust()).
 class KeyFrameObserver {
  public:
   virtual ~KeyFrameObserver() = default;
@@ -324,6 +328,9 @@ class Tracker {
   void setMappingSink(MappingSink* sink) { mapping_sink_ = sink; }
   /// Calls `observer` (not owned, must outlive its use; nullptr = none) from the mapping jobs.
   void setKeyFrameObserver(KeyFrameObserver* observer) { observer_ = observer; }
+  /// At the end of a run with a mapping sink, once its jobs and the observer's have run: waits for
+  /// the global BA still being solved (and one requested meanwhile) and applies it.
+  void finishGlobalBundleAdjust();
 
  private:
   struct LocalPoint {
