@@ -14,15 +14,16 @@
 #
 # What runs: the bounded queue and task thread (core_test), the map's update transaction and
 # concurrent observation changes (map_test), a local BA against a reader under the map's read lock
-# (mapping_test), the mapping worker, the concurrent pipeline's error paths and its segmentation
-# thread started a frame ahead with the dataset segmenter (system_test); then
+# and the global BA solved in its own thread, applied or dropped (mapping_test), the mapping
+# worker, the concurrent pipeline's error paths and its segmentation thread started a frame ahead
+# with the dataset segmenter (system_test); then
 # `superdyna run` in the concurrent pipeline - stereo-inertial (front-end thread, tracking, local
 # mapping thread, loop closing thread), mono-inertial and mono (the tracker waits for the mapping
 # thread at keyframes and for the inertial initialisation) - on a 7 s sequence simulated once into
 # BUILD_DIR (with the MH_03 motion from ../shared when present). Without --quick also the
 # concurrent stereo-inertial SLAM tests (ConcurrentSlam.*), relocalisation querying the loop
 # closer's database while the loop thread adds to it, and a loop found in the loop thread and
-# applied in the mapping thread. Tests that run learned models are left out: ONNX Runtime is not
+# applied in the mapping thread (mono-inertial: with its global BA in its own thread). Tests that run learned models are left out: ONNX Runtime is not
 # instrumented, so its threads would give false reports.
 set -euo pipefail
 
@@ -52,7 +53,7 @@ run() {
 }
 run core_test 'BoundedQueue.*:TaskThread.*'
 run map_test 'MapUpdate.*:MapTest.Concurrent*'
-run mapping_test 'BundleAdjustmentTest.AReaderUnderTheReadLock*'
+run mapping_test 'BundleAdjustmentTest.AReaderUnderTheReadLock*:LocalMapper.*GlobalBa*'
 if [ "$quick" = 1 ]; then
   run system_test 'MappingWorker.*:ConcurrentSlam.A*Error*:SystemSegmenter.SegmentingAFrameAhead*'
 else

@@ -117,21 +117,39 @@ TEST(LocalMapper, WithoutObserversTheOldestWindowKeyFrameHoldsTheGauge) {
   EXPECT_LT(largestPositionError(scene, moved), 2e-3);
 }
 
+/// Moves the keyframes `ids` 1-2 cm off their poses (each another way).
+void displace(test::MappingScene& scene, const std::vector<map::KeyFrameId>& ids) {
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    SE3d T_w_b = *scene.map->keyFramePose(ids[k]);
+    const double angle = static_cast<double>(k);
+    T_w_b.t += 0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5);
+    scene.map->setKeyFramePose(ids[k], T_w_b);
+  }
+}
+
+/// The map's keyframes from the third on (the first two: a monocular map's gauge), each displaced
+/// by displace(), and the options of a global BA.
+struct DisplacedScene {
+  test::MappingScene scene = test::makeMappingScene({});
+  std::vector<map::KeyFrameId> moved;
+  LocalMapperOptions options;
+};
+
+DisplacedScene displacedScene() {
+  DisplacedScene d;
+  d.moved.assign(d.scene.ids.begin() + 2, d.scene.ids.end());
+  displace(d.scene, d.moved);
+  d.options = windowOfFour(0);
+  d.options.global_ba_iterations = 20;
+  return d;
+}
+
 TEST(LocalMapper, GlobalBaAfterALoopMovesEveryKeyFrameBackAndHoldsTheGauge) {
   // After a loop correction the global BA optimises the whole map: every keyframe but the gauge
   // (a monocular map's first two: position and scale) returns to where its observations put it,
   // however far from the newest keyframe; the local BA would reach only its window.
-  test::MappingScene scene = test::makeMappingScene({});
-  LocalMapperOptions options = windowOfFour(0);
-  options.global_ba_iterations = 20;
+  auto [scene, moved, options] = displacedScene();
   const std::vector<map::KeyFrameId> held(scene.ids.begin(), scene.ids.begin() + 2);
-  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
-  for (std::size_t k = 0; k < moved.size(); ++k) {
-    SE3d T_w_b = *scene.map->keyFramePose(moved[k]);
-    const double angle = static_cast<double>(k);
-    T_w_b.t += 0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5);
-    scene.map->setKeyFramePose(moved[k], T_w_b);
-  }
   const double before = largestPositionError(scene, moved);
   EXPECT_GT(before, 0.01);
 
@@ -149,16 +167,6 @@ TEST(LocalMapper, GlobalBaAfterALoopMovesEveryKeyFrameBackAndHoldsTheGauge) {
   EXPECT_EQ(scene.map->consistencyError(), "");
 }
 
-/// Moves the keyframes `ids` 1-2 cm off their poses (each another way).
-void displace(test::MappingScene& scene, const std::vector<map::KeyFrameId>& ids) {
-  for (std::size_t k = 0; k < ids.size(); ++k) {
-    SE3d T_w_b = *scene.map->keyFramePose(ids[k]);
-    const double angle = static_cast<double>(k);
-    T_w_b.t += 0.01 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.5);
-    scene.map->setKeyFramePose(ids[k], T_w_b);
-  }
-}
-
 /// Records an empty correction, as a loop closure records its own.
 void recordLoopCorrection(map::Map& map) {
   const map::Map::UpdateLock update = map.updateLock();
@@ -169,11 +177,7 @@ TEST(LocalMapper, GlobalBaOnItsOwnThreadLandsOnceTakenAndIsDroppedAfterALaterLoo
   // The concurrent pipeline's global BA: solved in the mapper's own thread, applied where the
   // mapping jobs run. Its result equals the inline one's; a solution loaded before a later loop
   // moved the map is dropped; a request made while one runs starts once that one is taken.
-  test::MappingScene scene = test::makeMappingScene({});
-  LocalMapperOptions options = windowOfFour(0);
-  options.global_ba_iterations = 20;
-  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
-  displace(scene, moved);
+  auto [scene, moved, options] = displacedScene();
   const double before = largestPositionError(scene, moved);
   LocalMapper mapper(options, {scene.camera});
 
@@ -208,11 +212,7 @@ TEST(LocalMapper, GlobalBaOnItsOwnThreadLandsOnceTakenAndIsDroppedAfterALaterLoo
 TEST(LocalMapper, AnAbandonedGlobalBaNeverLands) {
   // Before a map is dropped (a reset) the tracker abandons its global BA: nothing is applied
   // later, not even to the next map.
-  test::MappingScene scene = test::makeMappingScene({});
-  LocalMapperOptions options = windowOfFour(0);
-  options.global_ba_iterations = 20;
-  const std::vector<map::KeyFrameId> moved(scene.ids.begin() + 2, scene.ids.end());
-  displace(scene, moved);
+  auto [scene, moved, options] = displacedScene();
   const double before = largestPositionError(scene, moved);
   LocalMapper mapper(options, {scene.camera});
   mapper.startGlobalBundleAdjust(*scene.map);
