@@ -127,10 +127,9 @@ class LocalMapper {
   LocalMappingResult initializeInertialIfDue(map::Map& map, map::KeyFrameId newest);
 
   /// After a loop closure has moved the map: the global BA (global_ba_iterations), visual-inertial
-  /// once the map is inertially initialised. Runs where the mapping jobs run; the state is solved
-  /// without a lock and written back as one map update, so keyframes and points the tracker adds
-  /// meanwhile keep their poses (ORB-SLAM propagates the global BA's change to them; these
-  /// corrections are millimetres, after the pose graph has closed the loop).
+  /// once the map is inertially initialised, at once where the mapping jobs run (the sequential,
+  /// deterministic pipeline; the state is solved and written back as one map update, and nothing
+  /// else changes the map meanwhile).
   BundleAdjustmentResult globalBundleAdjust(map::Map& map);
   /// The concurrent pipeline's global BA, ORB-SLAM3's: the problem of globalBundleAdjust() is
   /// loaded here, where the mapping jobs run, and solved in a thread of its own that neither
