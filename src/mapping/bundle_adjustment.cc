@@ -436,22 +436,24 @@ class Problem {
     map_.recordCorrection(std::move(record));
   }
 
-  /// Solved points take the solution, the others their oldest observer's correction.
+  /// Solved points take the solution, the others their oldest observer's correction. The solved
+  /// points' normals and distances are updated by removeOutliers(), after it has removed their
+  /// outlying observations.
   void movePoints(const std::map<map::KeyFrameId, map::KeyFrameCorrection>& corrections) {
     for (const map::MapPointId id : map_.mapPointIds()) {
       const auto solved = points_.find(id);
       if (solved != points_.end()) {
         map_.setMapPointPosition(id, solved->second);
-      } else {
-        std::optional<std::pair<map::KeyFrameId, Eigen::Vector3d>> reference;
-        map_.readMapPoint(id, [&](const map::MapPoint& p) {
-          if (!p.observations.empty()) reference.emplace(p.observations.begin()->first, p.p_w);
-        });
-        if (!reference) continue;
-        const auto it = corrections.find(reference->first);
-        if (it != corrections.end())
-          map_.setMapPointPosition(id, it->second.apply(reference->second));
+        continue;
       }
+      std::optional<std::pair<map::KeyFrameId, Eigen::Vector3d>> reference;
+      map_.readMapPoint(id, [&](const map::MapPoint& p) {
+        if (!p.observations.empty()) reference.emplace(p.observations.begin()->first, p.p_w);
+      });
+      if (!reference) continue;
+      const auto it = corrections.find(reference->first);
+      if (it != corrections.end())
+        map_.setMapPointPosition(id, it->second.apply(reference->second));
       if (!map_.updateNormalAndDistances(id)) map_.eraseMapPoint(id);
     }
   }
