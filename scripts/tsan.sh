@@ -23,7 +23,8 @@
 # BUILD_DIR (with the MH_03 motion from ../shared when present). Without --quick also the
 # concurrent stereo-inertial SLAM tests (ConcurrentSlam.*), relocalisation querying the loop
 # closer's database while the loop thread adds to it, and a loop found in the loop thread and
-# applied in the mapping thread (mono-inertial: with its global BA in its own thread). Tests that run learned models are left out: ONNX Runtime is not
+# applied in the mapping thread (mono-inertial: with its global BA in its own thread), and a map
+# merge found in the loop thread and applied in the mapping thread. Tests that run learned models are left out: ONNX Runtime is not
 # instrumented, so its threads would give false reports.
 set -euo pipefail
 
@@ -57,7 +58,7 @@ run mapping_test 'BundleAdjustmentTest.AReaderUnderTheReadLock*:LocalMapper.*Glo
 if [ "$quick" = 1 ]; then
   run system_test 'MappingWorker.*:ConcurrentSlam.A*Error*:SystemSegmenter.SegmentingAFrameAhead*'
 else
-  run system_test 'MappingWorker.*:ConcurrentSlam.*:Relocalisation.PlaceRecognitionWorksWhile*:LoopClosing.*Concurrent*:SystemSegmenter.SegmentingAFrameAhead*'
+  run system_test 'MappingWorker.*:ConcurrentSlam.*:Relocalisation.PlaceRecognitionWorksWhile*:LoopClosing.*Concurrent*:MapMerging.*Concurrent*:SystemSegmenter.SegmentingAFrameAhead*'
 fi
 
 sequence="$build_dir/tsan_sequence"

@@ -93,6 +93,7 @@ nlohmann::json runStatsJson(const system::System& slam, bool stopped) {
       {"lost_frames", slam.lostFrames()},
       {"map_resets", slam.resets()},
       {"relocalizations", slam.relocalizations()},
+      {"map_merges", slam.loopSummary().merges.size()},
       {"keyframes", t.keyframes},
       {"deterministic", slam.options().deterministic},
       {"mean_ms_per_frame",
@@ -337,6 +338,36 @@ std::optional<SE3d> groundTruthAt(const Trajectory& gt, TimeNs t_ns) {
 /// Loops accepted, stage times and, with a ground truth, each loop's relative-pose error (the
 /// verified relative pose against the true one, loop::loopError): a loop off by more than 0.5 m
 /// or 5 degrees is called false.
+/// One line per loop (or merge) with its error against the ground truth; returns how many were
+/// false and how many could be checked.
+std::pair<int, int> printClosures(const char* kind, const std::vector<loop::LoopClosure>& closures,
+                                  const Trajectory& gt, const SE3d& T_b_c) {
+  int false_closures = 0;
+  int checked = 0;
+  for (const loop::LoopClosure& l : closures) {
+    std::string truth = "no ground truth";
+    const std::optional<SE3d> gt_query = groundTruthAt(gt, l.query_t_ns);
+    const std::optional<SE3d> gt_match = groundTruthAt(gt, l.match_t_ns);
+    if (gt_query && gt_match) {
+      const SE3d error = loop::loopError(l, gt_match->inverse() * *gt_query, T_b_c);
+      const double angle_deg = rotationAngle(error.rotation()) * 180.0 / M_PI;
+      const bool wrong = error.t.norm() > 0.5 || angle_deg > 5.0;
+      ++checked;
+      false_closures += wrong ? 1 : 0;
+      truth = fmt::format("relative pose error {:.3f} m, {:.2f} deg{}", error.t.norm(), angle_deg,
+                          wrong ? " (FALSE)" : "");
+    }
+    const std::string scale =
+        l.scale != 1.0 ? fmt::format(" / scale {:.3f} (error at the true length)", l.scale) : "";
+    fmt::print(
+        "  {}: keyframe at {:.2f} s -> {:.2f} s, {} inliers, correction {:.3f} m / "
+        "{:.2f} deg{}; {}\n",
+        kind, nsToSeconds(l.query_t_ns), nsToSeconds(l.match_t_ns), l.inliers,
+        l.correction.t.norm(), rotationAngle(l.correction.rotation()) * 180.0 / M_PI, scale, truth);
+  }
+  return {false_closures, checked};
+}
+
 void printLoops(const system::System& slam, const Trajectory& gt, const SE3d& T_b_c) {
   if (!slam.options().loop.enabled) {
     fmt::print("loop closing: off\n");
@@ -362,32 +393,17 @@ void printLoops(const system::System& slam, const Trajectory& gt, const SE3d& T_
       loops.index_descriptors, static_cast<double>(loops.index_bytes) / 1e6, loops.index_keyframes,
       loops.index_rebuilds, loops.global_bas,
       loops.global_bas > 0 ? loops.global_ba_ms / loops.global_bas : 0.0, loops.global_bas_dropped);
-  int false_loops = 0;
-  int checked = 0;
-  for (const loop::LoopClosure& l : loops.loops) {
-    std::string truth = "no ground truth";
-    const std::optional<SE3d> gt_query = groundTruthAt(gt, l.query_t_ns);
-    const std::optional<SE3d> gt_match = groundTruthAt(gt, l.match_t_ns);
-    if (gt_query && gt_match) {
-      const SE3d error = loop::loopError(l, gt_match->inverse() * *gt_query, T_b_c);
-      const double angle_deg = rotationAngle(error.rotation()) * 180.0 / M_PI;
-      const bool wrong = error.t.norm() > 0.5 || angle_deg > 5.0;
-      ++checked;
-      false_loops += wrong ? 1 : 0;
-      truth = fmt::format("relative pose error {:.3f} m, {:.2f} deg{}", error.t.norm(), angle_deg,
-                          wrong ? " (FALSE LOOP)" : "");
-    }
-    const std::string scale =
-        l.scale != 1.0 ? fmt::format(" / scale {:.3f} (error at the true length)", l.scale) : "";
-    fmt::print(
-        "  loop: keyframe at {:.2f} s -> {:.2f} s, {} inliers, correction {:.3f} m / "
-        "{:.2f} deg{}; {}\n",
-        nsToSeconds(l.query_t_ns), nsToSeconds(l.match_t_ns), l.inliers, l.correction.t.norm(),
-        rotationAngle(l.correction.rotation()) * 180.0 / M_PI, scale, truth);
-  }
+  const auto [false_loops, checked] = printClosures("loop", loops.loops, gt, T_b_c);
   if (checked > 0)
     fmt::print("loop closing: {} of {} loops false against the ground truth\n", false_loops,
                checked);
+  fmt::print(
+      "map merging: {} atlas maps merged into the active map, {} left unmerged ({} keyframes)\n",
+      loops.merges.size(), loops.atlas_maps, loops.atlas_keyframes);
+  const auto [false_merges, merges_checked] = printClosures("merge", loops.merges, gt, T_b_c);
+  if (merges_checked > 0)
+    fmt::print("map merging: {} of {} merges false against the ground truth\n", false_merges,
+               merges_checked);
 }
 
 class RunCommand : public Command {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iterator>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -48,6 +50,7 @@ struct LoopCloser::Candidate {
   map::KeyFrameId id = map::kNoKeyFrame;  ///< The best-scoring keyframe of the group.
   std::vector<map::KeyFrameId> group;     ///< Sorted.
   double group_score = 0.0;
+  std::shared_ptr<map::Map> other;  ///< A merge candidate's atlas map (null: the query's map).
 };
 
 namespace {
@@ -220,10 +223,16 @@ LoopCloser::LoopCloser(const LoopClosingOptions& options, const CameraModel& cam
 void LoopCloser::reset() {
   {
     const std::lock_guard lock(database_mutex_);
-    database_.clear();
+    if (atlas_ && atlas_->numMaps() > 0) {
+      // The atlas maps never change: their keyframes go into the graph index now.
+      database_.settle(std::numeric_limits<TimeNs>::max(), atlas_->keyFrameIds());
+    } else {
+      database_.clear();
+    }
   }
   groups_.clear();
-  loop_edges_.clear();
+  // Kept: a merge brings their keyframes back into a map (edges apply where both ends are).
+  if (!atlas_) loop_edges_.clear();
   keyframes_since_loop_ = 0;
   had_loop_ = false;
   indexed_earlier_ = false;
@@ -258,7 +267,9 @@ LoopStep LoopCloser::findLoop(const map::Map& map, map::KeyFrameId keyframe, boo
     if (step.candidates >= options_.max_candidates) break;
     ++step.candidates;
     Rejection rejection = Rejection::kTooFewMatches;
-    step.found = verify(map, *query, candidate.id, inertial, rejection);
+    const map::Map& match_map = candidate.other ? *candidate.other : map;
+    step.found = verify(map, match_map, *query, candidate.id, inertial, rejection);
+    if (step.found) step.found->other = candidate.other;
     if (step.found) break;
     ++step.rejected[static_cast<int>(rejection)];
   }
@@ -276,6 +287,10 @@ std::optional<LoopClosure> LoopCloser::closeLoop(map::Map& map, const VerifiedLo
   closure.query = loop.query;
   closure.match = loop.match;
   closure.inliers = loop.inliers;
+  if (loop.other) {
+    if (!mergeMap(map, loop, closure)) return std::nullopt;
+    return closure;
+  }
   const bool found = map.readKeyFrame(loop.query, [&](const map::KeyFrame& kf) {
     closure.query_t_ns = kf.t_ns;
     closure.correction = loop.T_w_b_query * kf.T_w_b.inverse();
@@ -307,7 +322,12 @@ void LoopCloser::indexEarlierKeyFrames(const map::Map& map, map::KeyFrameId firs
 }
 
 void LoopCloser::settleDatabase(const map::Map& map, TimeNs now_ns) {
-  const std::vector<map::KeyFrameId> alive = map.keyFrameIds();
+  std::vector<map::KeyFrameId> alive = map.keyFrameIds();
+  if (atlas_) {
+    const std::vector<map::KeyFrameId> kept = atlas_->keyFrameIds();
+    alive.insert(alive.end(), kept.begin(), kept.end());
+    std::sort(alive.begin(), alive.end());
+  }
   const std::lock_guard lock(database_mutex_);
   database_.settle(now_ns, alive);
 }
@@ -360,6 +380,40 @@ std::vector<LoopCloser::Candidate> LoopCloser::detect(const map::Map& map,
     if (t_ns > latest) continue;
     passed[s.id] = s.score;
   }
+  std::vector<Candidate> candidates = groupCandidates(map, passed);
+  if (atlas_) {
+    std::vector<Candidate> merges = mergeCandidates(scores, bar);
+    candidates.insert(candidates.end(), std::make_move_iterator(merges.begin()),
+                      std::make_move_iterator(merges.end()));
+  }
+  return candidates;
+}
+
+std::vector<LoopCloser::Candidate> LoopCloser::mergeCandidates(
+    const std::vector<PlaceScore>& scores, double bar) const {
+  // Per atlas map, in the order of their best scores (deterministic, unlike their addresses).
+  std::vector<std::pair<std::shared_ptr<map::Map>, std::map<map::KeyFrameId, double>>> passed;
+  for (const PlaceScore& s : scores) {
+    if (s.score < bar) continue;
+    std::shared_ptr<map::Map> other = atlas_->mapOf(s.id);
+    if (!other) continue;
+    auto it = std::find_if(passed.begin(), passed.end(),
+                           [&](const auto& entry) { return entry.first == other; });
+    if (it == passed.end()) it = passed.insert(passed.end(), {std::move(other), {}});
+    it->second[s.id] = s.score;
+  }
+  std::vector<Candidate> candidates;
+  for (const auto& [other, in_other] : passed) {
+    for (Candidate& candidate : groupCandidates(*other, in_other)) {
+      candidate.other = other;
+      candidates.push_back(std::move(candidate));
+    }
+  }
+  return candidates;
+}
+
+std::vector<LoopCloser::Candidate> LoopCloser::groupCandidates(
+    const map::Map& map, const std::map<map::KeyFrameId, double>& passed) const {
   std::vector<Candidate> groups;
   double best_score = 0.0;
   for (const auto& [id, score] : passed) {
@@ -411,7 +465,8 @@ std::vector<LoopCloser::Candidate> LoopCloser::consistentCandidates(
   return consistent;
 }
 
-std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::KeyFrame& query,
+std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::Map& match_map,
+                                               const map::KeyFrame& query,
                                                map::KeyFrameId candidate, bool inertial,
                                                Rejection& rejection) const {
   const map::Map::ReadLock reading = map.readLock();  // one state of the loop's points
@@ -419,8 +474,8 @@ std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::K
   out.query = query.id;
   out.match = candidate;
   out.loop_group =
-      sortedGroup(candidate, map.bestCovisibleKeyFrames(candidate, options_.group_keyframes));
-  const LoopPoints loop = loopPoints(map, out.loop_group, query);
+      sortedGroup(candidate, match_map.bestCovisibleKeyFrames(candidate, options_.group_keyframes));
+  const LoopPoints loop = loopPoints(match_map, out.loop_group, query);
   const SE3d T_w_c = query.T_w_b * camera_.T_b_c;
   const QueryPoints mine = queryPoints(map, query, T_w_c.inverse());
   if (static_cast<int>(loop.ids.size()) < options_.ransac.min_inliers ||
@@ -537,7 +592,8 @@ std::optional<VerifiedLoop> LoopCloser::verify(const map::Map& map, const map::K
         SE3d(yawRotation(yawOf(R_correction)) * query.T_w_b.rotation(), out.T_w_b_query.t);
   }
   rejection = Rejection::kBeyondDrift;
-  if (!withinDrift(map, query, candidate, out.T_w_b_query, inertial)) return std::nullopt;
+  const bool merge = &match_map != &map;  // the frames of two maps are unrelated: no drift bound
+  if (!merge && !withinDrift(map, query, candidate, out.T_w_b_query, inertial)) return std::nullopt;
   return out;
 }
 
@@ -685,6 +741,39 @@ void LoopCloser::fuseLoop(map::Map& map, const VerifiedLoop& loop) const {
       sortedGroup(loop.query, map.bestCovisibleKeyFrames(loop.query, options_.group_keyframes));
   for (const map::KeyFrameId id : group)
     fuser_.fuse(map, id);
+}
+
+bool LoopCloser::mergeMap(map::Map& map, const VerifiedLoop& loop, LoopClosure& closure) {
+  const std::optional<map::KeyFrame> query = map.keyFrame(loop.query);
+  if (!atlas_ || !query) return false;
+  const std::shared_ptr<map::Map> other = atlas_->take(loop.other.get());
+  if (!other) return false;
+  // The similarity from the atlas map's frame into this one that takes the query camera's
+  // verified pose there onto its pose here (a length there is loop.scale times one here).
+  const SE3d T_here_c = query->T_w_b * camera_.T_b_c;
+  const SE3d T_there_c = loop.T_w_b_query * camera_.T_b_c;
+  const double scale = 1.0 / loop.scale;
+  const Eigen::Matrix3d R = T_here_c.rotation() * T_there_c.rotation().transpose();
+  const Sim3d S_here_there(scale, R, T_here_c.t - scale * (R * T_there_c.t));
+  other->transformWorld(S_here_there);
+  {
+    const map::Map::UpdateLock update = map.updateLock();  // the merge is one map update
+    map.absorb(*other);
+  }
+  closure.merge = true;
+  closure.query_t_ns = query->t_ns;
+  map.readKeyFrame(loop.match, [&](const map::KeyFrame& kf) { closure.match_t_ns = kf.t_ns; });
+  closure.correction = SE3d(Eigen::Quaterniond(R), S_here_there.t);
+  closure.scale = scale;
+  if (options_.fuse) fuseLoop(map, loop);
+  const std::optional<SE3d> T_w_match = map.keyFramePose(loop.match);
+  const std::optional<SE3d> T_w_query = map.keyFramePose(loop.query);
+  if (T_w_match && T_w_query) {
+    closure.T_match_query = T_w_match->inverse() * *T_w_query;
+    // Later pose graphs keep the two parts where the merge put them.
+    loop_edges_.push_back(edgeBetween(loop.match, *T_w_match, loop.query, *T_w_query));
+  }
+  return true;
 }
 
 }  // namespace superdyna::loop

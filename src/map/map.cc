@@ -64,6 +64,46 @@ Map::Map(MapOptions options) : options_(std::move(options)) {
   options_.validate();
 }
 
+Map::Map(MapOptions options, KeyFrameId first_keyframe_id, MapPointId first_point_id)
+    : Map(std::move(options)) {
+  if (first_keyframe_id < 0 || first_point_id < 0)
+    throw std::invalid_argument("Map: first ids must be >= 0");
+  next_keyframe_id_ = first_keyframe_id;
+  next_point_id_ = first_point_id;
+}
+
+void Map::absorb(Map& other) {
+  if (&other == this) throw std::invalid_argument("Map::absorb: a map cannot absorb itself");
+  const std::scoped_lock lock(mutex_, other.mutex_);
+  if (other.options_.T_b_c.size() != options_.T_b_c.size() ||
+      other.options_.scale_factor != options_.scale_factor ||
+      other.options_.num_levels != options_.num_levels) {
+    throw std::invalid_argument("Map::absorb: the maps have other rigs or pyramids");
+  }
+  for (const auto& [id, keyframe] : other.keyframes_)
+    if (keyframes_.contains(id) || erased_.contains(id))
+      throw std::invalid_argument("Map::absorb: both maps have keyframe " + std::to_string(id));
+  for (const auto& [id, erased] : other.erased_)
+    if (keyframes_.contains(id) || erased_.contains(id))
+      throw std::invalid_argument("Map::absorb: both maps had keyframe " + std::to_string(id));
+  for (const auto& [id, point] : other.points_)
+    if (points_.contains(id))
+      throw std::invalid_argument("Map::absorb: both maps have map point " + std::to_string(id));
+  keyframes_.merge(other.keyframes_);
+  points_.merge(other.points_);
+  covisibility_.merge(other.covisibility_);
+  erased_.merge(other.erased_);
+  next_keyframe_id_ = std::max(next_keyframe_id_, other.next_keyframe_id_);
+  next_point_id_ = std::max(next_point_id_, other.next_point_id_);
+  newest_keyframe_ = std::max(newest_keyframe_, other.newest_keyframe_);
+  other.keyframes_.clear();
+  other.points_.clear();
+  other.covisibility_.clear();
+  other.erased_.clear();
+  other.corrections_.clear();
+  other.newest_keyframe_ = kNoKeyFrame;
+}
+
 // ---- Private helpers (called with the mutex held)
 // ------------------------------------------------
 
@@ -550,6 +590,16 @@ bool Map::hasMapPoint(MapPointId id) const {
 std::vector<KeyFrameId> Map::keyFrameIds() const {
   const std::lock_guard lock(mutex_);
   return sortedKeys(keyframes_);
+}
+
+KeyFrameId Map::nextKeyFrameId() const {
+  const std::lock_guard lock(mutex_);
+  return next_keyframe_id_;
+}
+
+MapPointId Map::nextMapPointId() const {
+  const std::lock_guard lock(mutex_);
+  return next_point_id_;
 }
 
 KeyFrameId Map::newestKeyFrame() const {

@@ -86,9 +86,11 @@ LocalMapper::~LocalMapper() {
   abandonGlobalBundleAdjust();
 }
 
-void LocalMapper::reset() {
+void LocalMapper::reset(const std::vector<map::KeyFrameId>& kept) {
   abandonGlobalBundleAdjust();
-  right_.clear();
+  std::erase_if(right_, [&](const auto& entry) {
+    return !std::binary_search(kept.begin(), kept.end(), entry.first);
+  });
   recent_points_.clear();
   if (preintegrations_) preintegrations_->clear();
   initializations_ = 0;

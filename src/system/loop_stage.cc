@@ -62,7 +62,7 @@ bool LoopStage::applyFoundLoop(map::Map& map) {
     ++summary_.loops_dropped;
     return false;
   }
-  summary_.loops.push_back(*closure);
+  countClosure(*closure);
   return true;
 }
 
@@ -75,7 +75,7 @@ void LoopStage::record(const loop::LoopStep& step, bool inertial) {
   summary_.detection_ms += step.detection_ms;
   summary_.verification_ms += step.verification_ms;
   summary_.correction_ms += step.correction_ms;
-  if (step.closure) summary_.loops.push_back(*step.closure);
+  if (step.closure) countClosure(*step.closure);
   if (step.found) {
     if (found_) ++summary_.loops_dropped;  // not applied yet: the newer loop replaces it
     found_ = step.found;
@@ -85,6 +85,10 @@ void LoopStage::record(const loop::LoopStep& step, bool inertial) {
   summary_.index_bytes = closer_.database().indexBytes();
   summary_.index_keyframes = closer_.database().numKeyFrames();
   summary_.index_rebuilds = closer_.database().rebuilds();
+}
+
+void LoopStage::countClosure(const loop::LoopClosure& closure) {
+  (closure.merge ? summary_.merges : summary_.loops).push_back(closure);
 }
 
 void LoopStage::mapReset() {

@@ -137,7 +137,9 @@ System::System(const SystemOptions& options, const sensors::CameraCalibration& c
     loop_ = std::make_unique<LoopStage>(
         options_.loop, camera0, optim::ReprojectionCamera::from(camera0, cam0.T_b_c), fusion,
         options_.tracker.pose, !options_.deterministic, isMonocular(options_.mode));
+    loop_->setAtlas(&atlas_);
     tracker_.setKeyFrameObserver(loop_.get());
+    tracker_.setAtlas(&atlas_);
   }
   if (!options_.deterministic) {
     mapping_ = std::make_unique<MappingWorker>(static_cast<std::size_t>(options_.mapping_queue));
@@ -168,7 +170,7 @@ void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
     ++localizing_frames_;
     return;
   }
-  FrameRecord frame{{t_ns, result.T_w_b}, tracker_.resets(), result.reference, {}};
+  FrameRecord frame{{t_ns, result.T_w_b}, result.reference, {}};
   if (result.reference != map::kNoKeyFrame) {
     const SE3d& T_b_c = tracker_.T_b_c0();
     frame.T_cr_c = (result.T_w_reference * T_b_c).inverse() * (result.T_w_b * T_b_c);
@@ -179,11 +181,10 @@ void System::record(TimeNs t_ns, const tracking::TrackingResult& result) {
 Trajectory System::trajectory() const {
   Trajectory trajectory;
   trajectory.reserve(frames_.size());
-  const int current = tracker_.resets();
   const SE3d& T_b_c = tracker_.T_b_c0();
   for (const FrameRecord& frame : frames_) {
     std::optional<SE3d> T_w_reference;
-    if (frame.reference != map::kNoKeyFrame && frame.generation == current && tracker_.hasMap())
+    if (frame.reference != map::kNoKeyFrame && tracker_.hasMap())
       T_w_reference = tracker_.map().resolvedKeyFramePose(frame.reference);
     if (!T_w_reference) {
       trajectory.push_back(frame.online);
@@ -229,6 +230,8 @@ LoopSummary System::loopSummary() const {
   summary.global_bas = tracker_.mapper().globalBaRuns();
   summary.global_ba_ms = tracker_.mapper().globalBaMilliseconds();
   summary.global_bas_dropped = tracker_.mapper().globalBasDropped();
+  summary.atlas_maps = atlas_.numMaps();
+  summary.atlas_keyframes = atlas_.numKeyFrames();
   return summary;
 }
 
@@ -353,7 +356,7 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
   ++timings_.frames;
   if (result.keyframe) {
     ++timings_.keyframes;
-    keyframes_.push_back({{frame.t_ns, result.T_w_b}, tracker_.resets()});
+    keyframes_.push_back({{frame.t_ns, result.T_w_b}, result.reference});
   }
   timings_.total.extract_ms += result.times.extract_ms;
   timings_.total.stereo_ms += result.times.stereo_ms;
@@ -466,9 +469,10 @@ void System::finish() {
 
 Trajectory System::keyFrameTrajectory() const {
   Trajectory trajectory;
-  const int current = tracker_.resets();
-  for (const InsertedKeyFrame& k : keyframes_)
-    if (k.generation < current) trajectory.push_back(k.pose);
+  for (const InsertedKeyFrame& k : keyframes_) {
+    const bool in_map = tracker_.hasMap() && tracker_.map().resolvedKeyFramePose(k.id);
+    if (!in_map) trajectory.push_back(k.pose);
+  }
   if (tracker_.hasMap()) {
     const map::Map& map = tracker_.map();
     for (const map::KeyFrameId id : map.keyFrameIds()) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <set>
+#include <utility>
 
 #include "superdyna/core/error.h"
 #include "superdyna/mapping/keyframe_keypoints.h"
@@ -681,13 +682,17 @@ std::unique_ptr<map::Map> Tracker::newMap() const {
   map_options.T_b_c = {T_b_c0_};
   map_options.scale_factor = pyramid_.scale_factor;
   map_options.num_levels = pyramid_.levels;
-  return std::make_unique<map::Map>(map_options);
+  if (!map_) return std::make_unique<map::Map>(map_options);
+  return std::make_unique<map::Map>(map_options, map_->nextKeyFrameId(), map_->nextMapPointId());
 }
 
-void Tracker::releaseMap() {
+void Tracker::replaceMap(std::unique_ptr<map::Map> next) {
   if (mapping_sink_) mapping_sink_->discardPending();  // no job may use the old map
-  if (observer_) observer_->mapReset();                // nor the observer's own threads
   mapper_.abandonGlobalBundleAdjust();                 // nor the global BA's
+  const bool keep = atlas_ && observer_ && mapSettled() && map_->numKeyFrames() >= 2;
+  std::unique_ptr<map::Map> left = std::exchange(map_, std::move(next));
+  if (keep) atlas_->add(std::shared_ptr<map::Map>(std::move(left)));
+  if (observer_) observer_->mapReset();  // nor the observer's threads (the atlas's map: read only)
 }
 
 void Tracker::finishGlobalBundleAdjust() {
@@ -695,10 +700,12 @@ void Tracker::finishGlobalBundleAdjust() {
 }
 
 void Tracker::startMap(const Frame& frame, const SE3d& T_w_b) {
-  releaseMap();
   if (map_->numKeyFrames() > 0) ++resets_;
-  map_ = newMap();
-  runMapping([this] { mapper_.reset(); });
+  replaceMap(newMap());
+  // Ids are unique over the run: the atlas maps' right-camera observations stay for their merge.
+  runMapping([this, kept = atlas_ ? atlas_->keyFrameIds() : std::vector<map::KeyFrameId>{}] {
+    mapper_.reset(kept);
+  });
   corrections_followed_ = 0;
   inertial_inits_ = 0;
   failing_ = false;

@@ -11,8 +11,7 @@
 namespace superdyna::tracking {
 
 void Tracker::localizeIn(std::unique_ptr<map::Map> map, int inertial_stages) {
-  releaseMap();
-  map_ = std::move(map);
+  replaceMap(std::move(map));
   runMapping([this] { mapper_.reset(); });
   has_map_ = map_->numKeyFrames() > 0;
   localization_only_ = true;

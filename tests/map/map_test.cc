@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "superdyna/core/error.h"
+#include "superdyna/map/atlas.h"
 
 namespace superdyna::map {
 namespace {
@@ -789,6 +790,97 @@ TEST(PredictedOctave, RoundsTheScaleRatioUpWithinThePyramid) {
   EXPECT_EQ(predictedOctave(point, 5.0, 1.2, 1), 0) << "single-scale extractor";
   point.max_distance_m = 0.0;
   EXPECT_EQ(predictedOctave(point, 5.0, 1.2, 8), 0) << "no range yet";
+}
+
+}  // namespace
+}  // namespace superdyna::map
+
+namespace superdyna::map {
+namespace {
+
+TEST(MapMerge, AMapContinuingAnotherCountsOnFromItsNextIds) {
+  Map first;
+  first.addKeyFrame(makeKeyFrame(1));
+  first.addKeyFrame(makeKeyFrame(1));
+  first.addMapPoint(makePoint({0, 0, 1}));
+  Map second(MapOptions{}, first.nextKeyFrameId(), first.nextMapPointId());
+  EXPECT_EQ(second.addKeyFrame(makeKeyFrame(1)), 2);
+  EXPECT_EQ(second.addMapPoint(makePoint({0, 0, 1})), 1);
+  EXPECT_EQ(second.keyFrame(2)->previous, kNoKeyFrame);  // a map's first keyframe
+  EXPECT_THROW(Map(MapOptions{}, -1, 0), std::invalid_argument);
+}
+
+TEST_F(ThreeKeyFrameMap, AbsorbingAnOlderMapKeepsBothGraphsAndTheNewestKeyFrame) {
+  // `map` (ids kf 0-2, points 0-9) is the older map; the active one continues its ids.
+  const SE3d T_w_b(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+                   Eigen::Vector3d(1, 2, 3));
+  ASSERT_TRUE(map.eraseKeyFrame(kf[0]).has_value());  // anchored to kf1: its pose must come along
+  const SE3d T_w_0 = *map.resolvedKeyFramePose(kf[0]);
+  Map active(MapOptions{}, map.nextKeyFrameId(), map.nextMapPointId());
+  const KeyFrameId a = active.addKeyFrame(makeKeyFrame(4, T_w_b));
+  const KeyFrameId b = active.addKeyFrame(makeKeyFrame(4, T_w_b));
+  const MapPointId q = active.addMapPoint(makePoint({0, 0, 7}));
+  ASSERT_TRUE(active.addObservation(q, a, 0));
+  ASSERT_TRUE(active.addObservation(q, b, 1));
+  const std::size_t old_points = map.numMapPoints();
+
+  active.absorb(map);
+  EXPECT_EQ(map.numKeyFrames(), 0u);
+  EXPECT_EQ(map.numMapPoints(), 0u);
+  EXPECT_EQ(active.keyFrameIds(), (std::vector<KeyFrameId>{kf[1], kf[2], a, b}));
+  EXPECT_EQ(active.numMapPoints(), old_points + 1);
+  EXPECT_EQ(active.newestKeyFrame(), b);
+  EXPECT_EQ(active.keyFrame(kf[2])->previous, kf[1]);  // both temporal chains stay as they were
+  EXPECT_EQ(active.keyFrame(a)->previous, kNoKeyFrame);
+  EXPECT_EQ(active.covisibilityWeight(kf[1], kf[2]), 4);
+  EXPECT_EQ(active.covisibilityWeight(a, b), 1);
+  EXPECT_EQ(active.covisibilityWeight(a, kf[1]), 0);
+  EXPECT_TRUE(samePose(*active.resolvedKeyFramePose(kf[0]), T_w_0));
+  EXPECT_EQ(active.consistencyError(), "");
+  // New elements continue after both maps' ids; a fused point links the two graphs.
+  EXPECT_EQ(active.addKeyFrame(makeKeyFrame(10)), b + 1);
+  EXPECT_EQ(active.keyFrame(b + 1)->previous, b);
+  ASSERT_TRUE(active.addObservation(p[6], b + 1, 6));
+  ASSERT_TRUE(active.addObservation(q, kf[1], 0));
+  EXPECT_EQ(active.covisibilityWeight(kf[1], b + 1), 1);
+  EXPECT_EQ(active.consistencyError(), "");
+}
+
+TEST(Atlas, KeepsTheMapsLeftAndHandsEachOutOnce) {
+  Atlas atlas;
+  auto first = std::make_shared<Map>();
+  first->addKeyFrame(makeKeyFrame(1));
+  first->addKeyFrame(makeKeyFrame(1));
+  auto second = std::make_shared<Map>(MapOptions{}, first->nextKeyFrameId(), 0);
+  second->addKeyFrame(makeKeyFrame(1));
+  atlas.add(first);
+  atlas.add(std::make_shared<Map>());  // an empty map is not kept
+  atlas.add(second);
+  EXPECT_EQ(atlas.numMaps(), 2u);
+  EXPECT_EQ(atlas.numKeyFrames(), 3u);
+  EXPECT_EQ(atlas.keyFrameIds(), (std::vector<KeyFrameId>{0, 1, 2}));
+  EXPECT_EQ(atlas.mapOf(1), first);
+  EXPECT_EQ(atlas.mapOf(2), second);
+  EXPECT_EQ(atlas.mapOf(3), nullptr);
+  EXPECT_EQ(atlas.take(first.get()), first);
+  EXPECT_EQ(atlas.take(first.get()), nullptr);  // taken already: a second merge of it fails
+  EXPECT_EQ(atlas.mapOf(0), nullptr);
+  EXPECT_EQ(atlas.keyFrameIds(), (std::vector<KeyFrameId>{2}));
+  atlas.clear();
+  EXPECT_EQ(atlas.numMaps(), 0u);
+}
+
+TEST_F(ThreeKeyFrameMap, AbsorbRefusesMapsSharingAnIdAndChangesNeither) {
+  Map clash;  // counts from 0 as `map` did
+  clash.addKeyFrame(makeKeyFrame(1));
+  EXPECT_THROW(map.absorb(clash), std::invalid_argument);
+  EXPECT_EQ(map.numKeyFrames(), 3u);
+  EXPECT_EQ(clash.numKeyFrames(), 1u);
+  EXPECT_THROW(map.absorb(map), std::invalid_argument);
+  MapOptions stereo;
+  stereo.T_b_c = {SE3d(), SE3d()};
+  Map rig(stereo, 100, 100);
+  EXPECT_THROW(map.absorb(rig), std::invalid_argument);
 }
 
 }  // namespace

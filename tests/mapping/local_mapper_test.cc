@@ -223,6 +223,20 @@ TEST(LocalMapper, AnAbandonedGlobalBaNeverLands) {
   EXPECT_EQ(scene.map->correctionCount(), 0);
 }
 
+TEST(LocalMapper, AResetKeepsTheRightObservationsOfTheKeyFramesKeptInTheAtlas) {
+  LocalMapper mapper(LocalMapperOptions{}, {optim::ReprojectionCamera{}});
+  mapper.addKeyFrame(3, {Eigen::Vector2d(10.0, 20.0), std::nullopt}, {});
+  mapper.addKeyFrame(4, {std::nullopt}, {});
+  mapper.addKeyFrame(7, {Eigen::Vector2d(1.0, 2.0)}, {});
+  mapper.reset({3, 5, 7});  // keyframes 3 and 7 went to the atlas with their map, 4 was dropped
+  const auto& right = mapper.rightObservations();
+  ASSERT_EQ(right.size(), 2u);
+  EXPECT_EQ(right.at(3).front(), Eigen::Vector2d(10.0, 20.0));
+  EXPECT_EQ(right.at(7).front(), Eigen::Vector2d(1.0, 2.0));
+  mapper.reset();
+  EXPECT_TRUE(mapper.rightObservations().empty());
+}
+
 TEST(LocalMapperOptions, RejectsANegativeObserverCount) {
   LocalMapperOptions options;
   options.fixed_observer_keyframes = -1;

@@ -43,6 +43,8 @@
 // closeLoop() in another (the System's concurrent pipeline: a loop thread and the mapping
 // thread); recognize() (relocalisation's place recognition) may come from any thread.
 
+#include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <utility>
@@ -53,6 +55,7 @@
 #include "superdyna/loop/keyframe_database.h"
 #include "superdyna/loop/pose_graph.h"
 #include "superdyna/loop/rigid_ransac.h"
+#include "superdyna/map/atlas.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/point_fusion.h"
 #include "superdyna/optim/pose_optimizer.h"
@@ -104,6 +107,9 @@ struct LoopClosure {
   /// The correction of the query keyframe before the pose graph (T_new = C T_old) ...
   SE3d correction;
   double scale = 1.0;  ///< ... and of its scale (Sim(3) loops of monocular maps).
+  /// A map merge: `match` was a keyframe of an atlas map, now part of the active map, which took
+  /// that map moved by the similarity (scale, correction) from its frame into the active one.
+  bool merge = false;
 };
 
 /// How far an accepted loop's relative pose is from the true one, T_match_query_true (body
@@ -132,6 +138,8 @@ struct VerifiedLoop {
   /// Inlier matches: query keypoint index -> loop map point.
   std::vector<std::pair<int, map::MapPointId>> matches;
   int inliers = 0;
+  /// A merge: the atlas map that holds the match (T_w_b_query is in its frame); null for a loop.
+  std::shared_ptr<map::Map> other;
 };
 
 /// What one processKeyFrame() (or findLoop()) call did, with its stage times [ms].
@@ -170,8 +178,17 @@ class LoopCloser {
   /// nullopt when the query or the match keyframe has been culled since.
   std::optional<LoopClosure> closeLoop(map::Map& map, const VerifiedLoop& loop, bool inertial);
 
-  /// Forgets the database and the loops (the map was dropped).
+  /// Forgets the database and the loops (the map was dropped), but for the keyframes of the
+  /// atlas maps: their places are still recognised, for merges.
   void reset();
+  /// The maps tracking left (not owned, must outlive its use; nullptr = none). A keyframe
+  /// that recognises a place of one of them (detected, grouped, made consistent and verified as
+  /// a loop, with the candidate's points and covisibility taken from its map and no drift bound:
+  /// the two maps' frames are unrelated) merges it: closeLoop() takes that map from the atlas,
+  /// moves it into the active map's frame by the verified relative pose (rigid; a similarity in
+  /// visual monocular maps; yaw and position in inertial ones), absorbs it (map::Map::absorb) and
+  /// fuses the matched points, as a loop's; the active map's own keyframes do not move.
+  void setAtlas(map::Atlas* atlas) { atlas_ = atlas; }
 
   /// The indexed keyframes whose places score best against `rows` (placeDescriptorRows of a
   /// frame), best first, at most `count`. Thread-safe against processKeyFrame() and reset(): the
@@ -188,7 +205,14 @@ class LoopCloser {
     std::vector<map::KeyFrameId> members;  ///< Sorted.
     int consistency = 0;
   };
+  /// Loop candidates in the map, then merge candidates in the atlas maps.
   std::vector<Candidate> detect(const map::Map& map, const map::KeyFrame& query);
+  /// The candidates of `passed` (keyframe -> score, all of `map`) grouped with their best
+  /// covisible neighbours; groups scoring below 0.75 of the best one are dropped.
+  std::vector<Candidate> groupCandidates(const map::Map& map,
+                                         const std::map<map::KeyFrameId, double>& passed) const;
+  /// Merge candidates: keyframes of atlas maps scoring at least `bar`, grouped per map.
+  std::vector<Candidate> mergeCandidates(const std::vector<PlaceScore>& scores, double bar) const;
   /// Indexes the map's keyframes older than `first` (the first keyframe the closer is given):
   /// an inertial map reaches the closer only once its initialisation stages have run, and the
   /// places it saw before must be found again too.
@@ -198,9 +222,10 @@ class LoopCloser {
   std::vector<Candidate> consistentCandidates(const map::Map& map,
                                               const std::vector<Candidate>& groups);
   /// The verified loop, or nullopt with `rejection` set.
-  std::optional<VerifiedLoop> verify(const map::Map& map, const map::KeyFrame& query,
-                                     map::KeyFrameId candidate, bool inertial,
-                                     Rejection& rejection) const;
+  /// match_map: the candidate's map (`map` for a loop, an atlas map for a merge).
+  std::optional<VerifiedLoop> verify(const map::Map& map, const map::Map& match_map,
+                                     const map::KeyFrame& query, map::KeyFrameId candidate,
+                                     bool inertial, Rejection& rejection) const;
   /// Whether moving the query keyframe from its pose to T_w_b_new stays within what the odometry
   /// can have drifted since the match keyframe (max_correction_*).
   bool withinDrift(const map::Map& map, const map::KeyFrame& query, map::KeyFrameId match,
@@ -208,6 +233,8 @@ class LoopCloser {
   /// False when the query or the match keyframe is gone (nothing changed).
   bool correct(map::Map& map, const VerifiedLoop& loop, bool inertial);
   void fuseLoop(map::Map& map, const VerifiedLoop& loop) const;
+  /// closeLoop() of a merge; false when the atlas map or the query keyframe is gone.
+  bool mergeMap(map::Map& map, const VerifiedLoop& loop, LoopClosure& closure);
   /// Whether loops of the map are similarities: monocular without the IMU's scale.
   bool similarity(bool inertial) const { return monocular_ && !inertial; }
 
@@ -226,6 +253,7 @@ class LoopCloser {
   int keyframes_since_loop_ = 0;
   bool had_loop_ = false;
   bool indexed_earlier_ = false;  ///< indexEarlierKeyFrames() ran for the current map.
+  map::Atlas* atlas_ = nullptr;
 };
 
 }  // namespace superdyna::loop

@@ -142,6 +142,10 @@ class Map {
  public:
   /// Validates the options (OptionError).
   explicit Map(MapOptions options = {});
+  /// A map whose ids start at the given ones instead of 0: the maps of one run continue each
+  /// other's counters (next ids of the map before), so that ids stay unique across an atlas
+  /// (atlas.h) and two of its maps can become one (absorb()).
+  Map(MapOptions options, KeyFrameId first_keyframe_id, MapPointId first_point_id);
   Map(const Map&) = delete;
   Map& operator=(const Map&) = delete;
 
@@ -214,6 +218,15 @@ class Map {
   /// point is erased. False when the ids are equal or unknown, or the new point is bad.
   bool replaceMapPoint(MapPointId old_id, MapPointId new_id);
 
+  /// Moves every keyframe, point, covisibility edge and erased keyframe's anchor of `other` into
+  /// this map (map merging: `other` already transformed into this map's frame, see
+  /// transformWorld()), leaving `other` empty. The two maps share no observation, so they are
+  /// linked only by what the caller adds afterwards (fused points). The id counters become the
+  /// larger of both; other's correction log is dropped (poses recorded on it resolve through its
+  /// keyframes, which keep their ids). Throws std::invalid_argument, changing nothing, when the
+  /// maps share an id, have other rigs or `other` is this map. No thread may use `other`.
+  void absorb(Map& other);
+
   // ---- State that does not change the structure -------------------------------------------------
 
   bool setKeyFramePose(KeyFrameId id, const SE3d& T_w_b);
@@ -270,6 +283,9 @@ class Map {
   bool hasMapPoint(MapPointId id) const;
   /// Ids in increasing order.
   std::vector<KeyFrameId> keyFrameIds() const;
+  /// The ids the next keyframe and point added get (a map continuing this one starts there).
+  KeyFrameId nextKeyFrameId() const;
+  MapPointId nextMapPointId() const;
   /// The keyframe with the largest id (the newest), kNoKeyFrame when empty.
   KeyFrameId newestKeyFrame() const;
   /// The keyframe whose predecessor is `id` (kNoKeyFrame when none or unknown).

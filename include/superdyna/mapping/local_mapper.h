@@ -114,8 +114,9 @@ class LocalMapper {
   /// culling.
   LocalMappingResult processKeyFrame(map::Map& map, map::KeyFrameId newest);
 
-  /// Forget all state (after a map reset).
-  void reset();
+  /// Forget all state (after a map reset), but the right-camera observations of the keyframes
+  /// `kept` (sorted ids of the maps left in the atlas, map/atlas.h: a merge brings them back).
+  void reset(const std::vector<map::KeyFrameId>& kept = {});
 
   /// Whether inertial stage `stage` (0 = initialisation, 1 and 2 = refinements) is due for a map
   /// of this age and keyframe count. Reads only options: safe from any thread.

@@ -34,8 +34,12 @@ struct LoopSummary {
   std::size_t verifications = 0;  ///< Consistent candidates geometrically verified.
   std::size_t rejected[loop::kRejectionKinds] = {};  ///< ... and rejected, by loop::Rejection.
   std::vector<loop::LoopClosure> loops;              ///< Accepted (and corrected) loops.
-  /// Verified loops not applied (threaded): a keyframe of theirs was culled before the
-  /// correction, or a newer loop was found first.
+  /// Atlas maps merged into the active map (loop::LoopClosure::merge), as loops are counted.
+  std::vector<loop::LoopClosure> merges;
+  std::size_t atlas_maps = 0;  ///< Maps left in the atlas, never merged (at the time of asking).
+  std::size_t atlas_keyframes = 0;  ///< ... and their keyframes.
+  /// Verified loops and merges not applied (threaded): a keyframe of theirs was culled before
+  /// the correction, or a newer loop was found first.
   std::size_t loops_dropped = 0;
   double detection_ms = 0.0;          ///< Summed: database query and consistency check.
   double verification_ms = 0.0;       ///< Summed: matching, RANSAC, guided matching.
@@ -62,6 +66,8 @@ class LoopStage final : public tracking::KeyFrameObserver {
   LoopStage(const LoopStage&) = delete;
   LoopStage& operator=(const LoopStage&) = delete;
 
+  /// The maps tracking leaves (loop::LoopCloser::setAtlas); call before the first keyframe.
+  void setAtlas(map::Atlas* atlas) { closer_.setAtlas(atlas); }
   bool keyFrameMapped(map::Map& map, map::KeyFrameId id, bool inertial) override;
   /// Threaded: waits for the loop thread's current keyframe, drops the queued ones and a loop
   /// found but not applied.
@@ -84,6 +90,8 @@ class LoopStage final : public tracking::KeyFrameObserver {
  private:
   /// Adds a step's counts and times to the summary; keeps a loop it found for the mapping thread.
   void record(const loop::LoopStep& step, bool inertial);
+  /// Counts an applied loop or merge (call with mutex_ held).
+  void countClosure(const loop::LoopClosure& closure);
   /// Applies the loop the loop thread found, if any. Returns whether the map was corrected.
   bool applyFoundLoop(map::Map& map);
 

@@ -164,16 +164,18 @@ class System {
   /// Every recorded frame's pose as it is now: a frame tracked on the current map follows the
   /// later corrections of the keyframe it was tracked against (its pose relative to that keyframe
   /// is kept; an erased keyframe is resolved through its anchor, map::Map::resolvedKeyFramePose),
-  /// as ORB-SLAM reports its frames; frames of maps dropped at resets, and frames tracked on no
-  /// map, keep their poses as tracked. Call after finish() for the final poses.
+  /// as ORB-SLAM reports its frames, and so do the frames of maps left at resets and merged into
+  /// the current one since (keyframe ids are unique over the run's maps); frames of maps left and
+  /// not merged, and frames tracked on no map, keep their poses as tracked. Call after finish()
+  /// for the final poses.
   Trajectory trajectory() const;
   /// Every recorded frame's pose as the tracker reported it at that frame (causal: with the loop
   /// corrections known by then, no later ones, apart from changes of the world frame such as the
   /// inertial initialisation's).
   Trajectory onlineTrajectory() const;
-  /// Keyframes in time order: those of the current map with their latest (local-BA refined)
-  /// poses, those of maps dropped at resets with their poses at insertion. Call after finish() for
-  /// the final poses.
+  /// Keyframes in time order: those of the current map (merged maps included) with their latest
+  /// (local-BA refined) poses, those of maps left at resets and not merged with their poses at
+  /// insertion. Call after finish() for the final poses.
   Trajectory keyFrameTrajectory() const;
   const TimingSummary& timings() const { return timings_; }
   std::size_t lostFrames() const { return lost_frames_; }
@@ -249,10 +251,10 @@ class System {
   void runSequentially(io::DatasetSource& source, const FrameCallback& on_frame);
   void runConcurrently(io::DatasetSource& source, const FrameCallback& on_frame);
 
-  /// A keyframe as inserted, with the map generation (resets() at insertion) it belongs to.
+  /// A keyframe as inserted, with its id (unique over the run's maps).
   struct InsertedKeyFrame {
     StampedPose pose;
-    int generation = 0;
+    map::KeyFrameId id = map::kNoKeyFrame;
   };
 
   SystemOptions options_;
@@ -270,6 +272,9 @@ class System {
   bool segmenting_ = false;
   std::unique_ptr<TaskThread> segment_thread_;  ///< Segments while the front end extracts.
   semantics::MaskPropagator propagator_;        ///< Masks of the frames not segmented.
+  /// The maps tracking left, for loop closing to merge (map/atlas.h); declared before the
+  /// tracker and the loop stage that use it.
+  map::Atlas atlas_;
   /// Declared before mapping_ (destroyed after it): the mapping jobs call it.
   std::unique_ptr<LoopStage> loop_;
   tracking::Tracker tracker_;
@@ -279,7 +284,6 @@ class System {
   /// keyframe it was tracked against (reference kNoKeyFrame: none).
   struct FrameRecord {
     StampedPose online;
-    int generation = 0;
     map::KeyFrameId reference = map::kNoKeyFrame;
     SE3d T_cr_c;
   };

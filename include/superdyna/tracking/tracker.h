@@ -46,6 +46,7 @@
 #include "superdyna/features/matcher.h"
 #include "superdyna/imu/preintegration.h"
 #include "superdyna/io/dataset_source.h"
+#include "superdyna/map/atlas.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/local_mapper.h"
 #include "superdyna/optim/pose_optimizer.h"
@@ -328,6 +329,11 @@ class Tracker {
   void setMappingSink(MappingSink* sink) { mapping_sink_ = sink; }
   /// Calls `observer` (not owned, must outlive its use; nullptr = none) from the mapping jobs.
   void setKeyFrameObserver(KeyFrameObserver* observer) { observer_ = observer; }
+  /// Where a map goes when tracking leaves it for a new one (not owned, must outlive its use;
+  /// nullptr = maps are dropped): a map the observer has been told about (visual, or inertial
+  /// once settled) with at least two keyframes, for loop closing to merge later (map/atlas.h).
+  /// The maps of a run continue each other's ids either way.
+  void setAtlas(map::Atlas* atlas) { atlas_ = atlas; }
   /// At the end of a run with a mapping sink, once its jobs and the observer's have run: waits for
   /// the global BA still being solved (and one requested meanwhile) and applies it.
   void finishGlobalBundleAdjust();
@@ -393,9 +399,11 @@ class Tracker {
                                    TimeNs t1_ns);
   void normalizeMonoScale(map::KeyFrameId first);
   void initializeAt(const Frame& frame, const SE3d& T_w_b, TrackingResult& result);
+  /// An empty map whose ids continue the current map's.
   std::unique_ptr<map::Map> newMap() const;
-  /// Before map_ is replaced: no mapping job and no observer thread may use it any more.
-  void releaseMap();
+  /// Makes `next` the map: first no mapping job, global BA or observer thread may use the current
+  /// one any more; it goes to the atlas when one is set and the map is worth keeping (setAtlas).
+  void replaceMap(std::unique_ptr<map::Map> next);
   void startMap(const Frame& frame, const SE3d& T_w_b);
   /// A local-map search: the map point tracked by each keypoint of the frame (kNoMapPoint where
   /// none, all of them when tracking failed) and the points projected into the image.
@@ -521,6 +529,7 @@ class Tracker {
   mapping::LocalMapper mapper_;  ///< Used only by mapping jobs (see MappingSink).
   MappingSink* mapping_sink_ = nullptr;
   KeyFrameObserver* observer_ = nullptr;
+  map::Atlas* atlas_ = nullptr;
   int corrections_followed_ = 0;  ///< Of the current map's recorded corrections.
 
   bool has_map_ = false;
