@@ -149,15 +149,22 @@ LoopRun runCircle(SensorMode mode, bool loop_closing, bool deterministic = true)
   return runOn(circleSequence(), circleOptions({}, mode, loop_closing, deterministic));
 }
 
-void expectTrueLoops(const LoopRun& run) {
-  for (const loop::LoopClosure& l : run.loops.loops) {
-    const SE3d truth =
-        truthAt(run.ground_truth, l.match_t_ns).inverse() * truthAt(run.ground_truth, l.query_t_ns);
-    const SE3d error = loop::loopError(l, truth, run.T_b_c);
-    EXPECT_LT(error.t.norm(), 0.05) << "loop " << l.query << " -> " << l.match;
+/// Each loop's (or merge's) relative pose of its query and match keyframes (after the
+/// correction) is the true one, within 5 cm and 0.02 rad, from at least 60 inliers.
+void expectTrueClosures(const std::vector<loop::LoopClosure>& closures, const Trajectory& gt,
+                        const SE3d& T_b_c) {
+  for (const loop::LoopClosure& l : closures) {
+    const SE3d truth = truthAt(gt, l.match_t_ns).inverse() * truthAt(gt, l.query_t_ns);
+    const SE3d error = loop::loopError(l, truth, T_b_c);
+    EXPECT_LT(error.t.norm(), 0.05)
+        << (l.merge ? "merge " : "loop ") << l.query << " -> " << l.match;
     EXPECT_LT(rotationAngle(error.rotation()), 0.02);
     EXPECT_GE(l.inliers, 60);
   }
+}
+
+void expectTrueLoops(const LoopRun& run) {
+  expectTrueClosures(run.loops.loops, run.ground_truth, run.T_b_c);
 }
 
 TEST(LoopClosing, StereoClosesTheCircleAndLowersTheAte) {
@@ -405,16 +412,8 @@ struct MergeRun {
   SE3d T_b_c;  ///< The left camera's.
 };
 
-/// Each merge's relative pose of the query and match keyframes (after the merge) is the true one.
 void expectTrueMerges(const MergeRun& run) {
-  for (const loop::LoopClosure& m : run.loops.merges) {
-    const SE3d truth =
-        truthAt(run.ground_truth, m.match_t_ns).inverse() * truthAt(run.ground_truth, m.query_t_ns);
-    const SE3d error = loop::loopError(m, truth, run.T_b_c);
-    EXPECT_LT(error.t.norm(), 0.05) << "merge " << m.query << " -> " << m.match;
-    EXPECT_LT(rotationAngle(error.rotation()), 0.02);
-    EXPECT_GE(m.inliers, 60);
-  }
+  expectTrueClosures(run.loops.merges, run.ground_truth, run.T_b_c);
 }
 
 /// A blackout: both images black from t0_s to t1_s (from the first frame).
@@ -476,23 +475,37 @@ MergeRun runBlackout(const fs::path& sequence, SystemOptions options, const Blac
   return run;
 }
 
+/// `options` over `sequence` with the blackout, with loop closing (so the atlas) and without:
+/// both start one new map after it; with the atlas it is merged once, truly.
+struct MergeComparison {
+  MergeRun merged;
+  MergeRun apart;
+};
+MergeComparison compareMerging(const fs::path& sequence, SystemOptions options,
+                               const Blackout& blackout) {
+  MergeComparison runs;
+  options.loop.enabled = true;
+  runs.merged = runBlackout(sequence, options, blackout);
+  options.loop.enabled = false;
+  runs.apart = runBlackout(sequence, options, blackout);
+  EXPECT_EQ(runs.merged.resets, 1);
+  EXPECT_EQ(runs.apart.resets, 1);
+  EXPECT_EQ(runs.merged.poses, runs.apart.poses);
+  EXPECT_EQ(runs.merged.loops.merges.size(), 1u);
+  EXPECT_EQ(runs.merged.loops.atlas_maps, 0u);
+  expectTrueMerges(runs.merged);
+  return runs;
+}
+
 /// The map left at the blackout goes to the atlas; the new map recognises its first place when the
 /// rig comes round and absorbs it, moved into its frame: one map, one frame at the end. Loop
 /// closing off (no atlas) leaves the two parts of the trajectory in unrelated frames.
 TEST(MapMerging, StereoMergesTheMapLeftAtABlackoutWhenItComesRound) {
-  const Blackout blackout{2.0, 3.0};
-  const MergeRun merged =
-      runBlackout(circleSequence(), circleOptions({}, SensorMode::kStereo, true, true), blackout);
-  const MergeRun apart =
-      runBlackout(circleSequence(), circleOptions({}, SensorMode::kStereo, false, true), blackout);
-  EXPECT_EQ(merged.resets, 1);
-  EXPECT_EQ(apart.resets, 1);
+  const auto [merged, apart] = compareMerging(
+      circleSequence(), circleOptions({}, SensorMode::kStereo, true, true), {2.0, 3.0});
   ASSERT_EQ(merged.loops.merges.size(), 1u);
-  EXPECT_EQ(merged.loops.atlas_maps, 0u);
   const loop::LoopClosure& merge = merged.loops.merges.front();
   EXPECT_LT(nsToSeconds(merge.match_t_ns - merge.query_t_ns), -5.0);  // a place of the first map
-  EXPECT_EQ(merged.poses, apart.poses);
-  expectTrueMerges(merged);
   // Measured: 5.8 mm without the black frames (31.7 mm with them) against 82.2 mm (79.7 mm) with
   // the maps apart; the circle without blackout: 5.2 mm.
   EXPECT_LT(merged.seen_ate_m, 0.01);
@@ -501,27 +514,21 @@ TEST(MapMerging, StereoMergesTheMapLeftAtABlackoutWhenItComesRound) {
 }
 
 /// The shipped configuration of `mode` with the circle runs' settings.
-SystemOptions shippedCircleOptions(SensorMode mode, const std::string& config, bool loop_closing,
+SystemOptions shippedCircleOptions(SensorMode mode, const std::string& config,
                                    bool deterministic = true) {
   return circleOptions(loadSystemOptions(fs::path(SUPERDYNA_SOURCE_DIR) / "configs" / config), mode,
-                       loop_closing, deterministic);
+                       true, deterministic);
 }
 
 /// A monocular map after the blackout has a scale of its own: the merge is a similarity, and the
 /// merged map has the active map's unit. Measured: 17.5 mm (Sim(3)-aligned, without the black
 /// frames) against 712 mm with the two maps apart.
 TEST(MapMerging, MonoMergesTheMapLeftAtABlackoutWithASimilarity) {
-  const Blackout blackout{5.0, 6.0};
-  const MergeRun merged =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kMono, "euroc_mono.yaml", true), blackout);
-  const MergeRun apart =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kMono, "euroc_mono.yaml", false), blackout);
-  EXPECT_EQ(merged.resets, 1);
+  const auto [merged, apart] =
+      compareMerging(wobblingCircleSequence(),
+                     shippedCircleOptions(SensorMode::kMono, "euroc_mono.yaml"), {5.0, 6.0});
   ASSERT_EQ(merged.loops.merges.size(), 1u);
   EXPECT_NE(merged.loops.merges.front().scale, 1.0);
-  expectTrueMerges(merged);
   EXPECT_LT(merged.seen_ate_m, 0.03);
   EXPECT_LT(merged.seen_ate_m, 0.1 * apart.seen_ate_m);
 }
@@ -531,22 +538,14 @@ TEST(MapMerging, MonoMergesTheMapLeftAtABlackoutWithASimilarity) {
 /// merged by yaw and position when the new map, settled in turn, comes round (measured: 7.6 mm
 /// without the black frames against 36.8 mm apart); at 4 s the map left is dropped instead.
 TEST(MapMerging, StereoInertialMergesSettledMapsOnly) {
-  const std::string config = "euroc_stereo_inertial.yaml";
-  const MergeRun merged =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kStereoInertial, config, true), {5.0, 6.0});
-  const MergeRun apart =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kStereoInertial, config, false), {5.0, 6.0});
-  EXPECT_EQ(merged.resets, 1);
+  const SystemOptions options =
+      shippedCircleOptions(SensorMode::kStereoInertial, "euroc_stereo_inertial.yaml");
+  const auto [merged, apart] = compareMerging(wobblingCircleSequence(), options, {5.0, 6.0});
   ASSERT_EQ(merged.loops.merges.size(), 1u);
   EXPECT_EQ(merged.loops.merges.front().scale, 1.0);
-  expectTrueMerges(merged);
   EXPECT_LT(merged.seen_ate_m, 0.015);
   EXPECT_LT(merged.seen_ate_m, 0.5 * apart.seen_ate_m);
-  const MergeRun unsettled =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kStereoInertial, config, true), {4.0, 5.0});
+  const MergeRun unsettled = runBlackout(wobblingCircleSequence(), options, {4.0, 5.0});
   EXPECT_EQ(unsettled.resets, 1);
   EXPECT_TRUE(unsettled.loops.merges.empty());
   EXPECT_EQ(unsettled.loops.atlas_maps, 0u);
@@ -556,17 +555,9 @@ TEST(MapMerging, StereoInertialMergesSettledMapsOnly) {
 /// merge is rigid (yaw and position). Measured: 17.8 mm without the black frames against 4.08 m
 /// apart.
 TEST(MapMerging, MonoInertialMergesTheMapLeftAtABlackout) {
-  const std::string config = "euroc_mono_inertial.yaml";
-  const Blackout blackout{5.0, 6.0};
-  const MergeRun merged =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kMonoInertial, config, true), blackout);
-  const MergeRun apart =
-      runBlackout(wobblingCircleSequence(),
-                  shippedCircleOptions(SensorMode::kMonoInertial, config, false), blackout);
-  EXPECT_EQ(merged.resets, 1);
-  ASSERT_EQ(merged.loops.merges.size(), 1u);
-  expectTrueMerges(merged);
+  const auto [merged, apart] = compareMerging(
+      wobblingCircleSequence(),
+      shippedCircleOptions(SensorMode::kMonoInertial, "euroc_mono_inertial.yaml"), {5.0, 6.0});
   EXPECT_LT(merged.seen_ate_m, 0.03);
   EXPECT_LT(merged.seen_ate_m, 0.1 * apart.seen_ate_m);
 }
