@@ -37,6 +37,9 @@
 //    graph keyframe. Then the loop's duplicated points are fused: the verified matches make the
 //    query keyframe observe the loop's points (its own duplicates merged into them), and the
 //    PointFuser runs on the query keyframe's group.
+// 4. Map merging (with an atlas, setAtlas()): candidates in the maps tracking left go through the
+//    same stages 1 and 2 against their own map; the verified one is moved into this map's frame
+//    and absorbed, its matches fused as a loop's (mergeMap()).
 //
 // Features labelled on movable objects (class_id != 0) neither vote nor take part in the
 // verification. Threads: one thread calls processKeyFrame(), or findLoop() in one thread and
