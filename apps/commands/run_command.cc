@@ -335,9 +335,6 @@ std::optional<SE3d> groundTruthAt(const Trajectory& gt, TimeNs t_ns) {
   return best->T_w_x;
 }
 
-/// Loops accepted, stage times and, with a ground truth, each loop's relative-pose error (the
-/// verified relative pose against the true one, loop::loopError): a loop off by more than 0.5 m
-/// or 5 degrees is called false.
 /// One line per loop (or merge) with its error against the ground truth; returns how many were
 /// false and how many could be checked.
 std::pair<int, int> printClosures(const char* kind, const std::vector<loop::LoopClosure>& closures,
@@ -368,6 +365,9 @@ std::pair<int, int> printClosures(const char* kind, const std::vector<loop::Loop
   return {false_closures, checked};
 }
 
+/// Loops and merges accepted, stage times and, with a ground truth, each one's relative-pose
+/// error (the verified relative pose against the true one, loop::loopError): one off by more
+/// than 0.5 m or 5 degrees is called false.
 void printLoops(const system::System& slam, const Trajectory& gt, const SE3d& T_b_c) {
   if (!slam.options().loop.enabled) {
     fmt::print("loop closing: off\n");

@@ -3,7 +3,8 @@
 // (KeyFrame::map_points <-> MapPoint::observations) and maintains the covisibility graph.
 //
 // Ownership: other code holds ids (KeyFrameId, MapPointId), never pointers into the map. Ids come
-// from counters of this Map (no global state), start at 0 and are never reused.
+// from counters of this Map (no global state), start at 0 (or where the map before left off, so
+// that the maps of a run never share an id: atlas.h) and are never reused.
 //
 // Covisibility: two keyframes are covisible when they observe a common map point; the weight of
 // the edge is the number of such points. The graph is updated incrementally by every observation
