@@ -294,7 +294,9 @@ TrackingResult Tracker::track(const Frame& input) {
   }
   if (!has_map_) {
     initializeAt(frame, initialPose(frame, prediction.T_w_b), result);
-    if (result.state == TrackingState::kInitialized) noteReference(result);
+    // A frame that starts no map is a prediction in the left map: it is reported through that
+    // map's reference keyframe, so that it follows the map if a merge brings it back.
+    noteReference(result);
     result.times.track_ms = millisecondsSince(start);
     rememberFrame(input, kept, {});
     updateMotion(result.T_w_b, frame.t_ns);
@@ -332,8 +334,8 @@ TrackingResult Tracker::track(const Frame& input) {
     wants_keyframe = !localization_only_ && needKeyFrame(frame, result.inliers);
     if (localization_only_) followTrackedKeyFrame(tracked);
   }
-  if (has_map_) noteReference(result);
-  reading.unlock();  // a new keyframe is submitted to (and may wait for) the mapping thread
+  noteReference(result);  // a frame lost for good too: the map it leaves may be merged back
+  reading.unlock();       // a new keyframe is submitted to (and may wait for) the mapping thread
   if (reanchor) {
     // The IMU carries the map's frame over the failure: a keyframe at the predicted pose with new
     // stereo points, linked to the last one by the preintegration across the failure.

@@ -506,7 +506,7 @@ TEST(MapMerging, StereoMergesTheMapLeftAtABlackoutWhenItComesRound) {
   ASSERT_EQ(merged.loops.merges.size(), 1u);
   const loop::LoopClosure& merge = merged.loops.merges.front();
   EXPECT_LT(nsToSeconds(merge.match_t_ns - merge.query_t_ns), -5.0);  // a place of the first map
-  // Measured: 5.8 mm without the black frames (31.7 mm with them) against 82.2 mm (79.7 mm) with
+  // Measured: 5.8 mm without the black frames (36.8 mm with them) against 82.2 mm (79.7 mm) with
   // the maps apart; the circle without blackout: 5.2 mm.
   EXPECT_LT(merged.seen_ate_m, 0.01);
   EXPECT_LT(merged.seen_ate_m, 0.2 * apart.seen_ate_m);

@@ -209,9 +209,10 @@ struct TrackingResult {
   /// (TrackerOptions::imu_reanchor; state kRecentlyLost).
   bool reanchored = false;
   bool keyframe = false;
-  /// The keyframe the pose was estimated against (the frame's own when it became one) and its
-  /// pose at that moment, kNoKeyFrame when the frame was not tracked on a map: the frame's pose
-  /// relative to it follows the keyframe's later corrections (System::trajectory).
+  /// The keyframe the pose was estimated against (the frame's own when it became one; for a lost
+  /// frame, the reference keyframe its prediction started from, also in a map tracking leaves)
+  /// and its pose at that moment, kNoKeyFrame when there is none: the frame's pose relative to it
+  /// follows the keyframe's later corrections and merges (System::trajectory).
   map::KeyFrameId reference = map::kNoKeyFrame;
   SE3d T_w_reference;
   /// Set when the world frame of the current map changed at this frame (inertial initialisation:
