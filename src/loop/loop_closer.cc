@@ -269,8 +269,10 @@ LoopStep LoopCloser::findLoop(const map::Map& map, map::KeyFrameId keyframe, boo
     Rejection rejection = Rejection::kTooFewMatches;
     const map::Map& match_map = candidate.other ? *candidate.other : map;
     step.found = verify(map, match_map, *query, candidate.id, inertial, rejection);
-    if (step.found) step.found->other = candidate.other;
-    if (step.found) break;
+    if (step.found) {
+      step.found->other = candidate.other;
+      break;
+    }
     ++step.rejected[static_cast<int>(rejection)];
   }
   step.verification_ms = millisecondsSince(start);

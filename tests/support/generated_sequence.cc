@@ -44,4 +44,10 @@ sim::SimulationOptions flightOptions(double duration_s, sim::SceneType scene,
   return options;
 }
 
+void Blackout::apply(sensors::FrameBundle& frame, double t_s) const {
+  if (!covers(t_s)) return;
+  frame.image0.setTo(0);
+  if (!frame.image1.empty()) frame.image1.setTo(0);
+}
+
 }  // namespace superdyna::test

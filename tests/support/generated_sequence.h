@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <string>
 
+#include "superdyna/sensors/frame_bundle.h"
 #include "superdyna/sim/sequence_generator.h"
 
 namespace superdyna::test {
@@ -20,5 +21,15 @@ const std::filesystem::path& generatedSequence(const std::string& name,
 /// simulator's defaults otherwise), for generatedSequence().
 sim::SimulationOptions flightOptions(double duration_s, sim::SceneType scene,
                                      sim::DynamicLevel dynamic, std::uint64_t seed);
+
+/// A blackout applied to a sequence's frames as they are read: both images black from t0_s to t1_s
+/// after its first frame.
+struct Blackout {
+  double t0_s = 0.0;
+  double t1_s = 0.0;
+  bool covers(double t_s) const { return t_s >= t0_s && t_s < t1_s; }
+  /// Blackens both images of `frame`, `t_s` after the first frame, when the blackout covers it.
+  void apply(sensors::FrameBundle& frame, double t_s) const;
+};
 
 }  // namespace superdyna::test

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <memory>
 #include <optional>
 
 #include "superdyna/eval/evaluate.h"
@@ -120,19 +121,29 @@ SystemOptions circleOptions(SystemOptions options, SensorMode mode, bool loop_cl
   return options;
 }
 
-LoopRun runOn(const fs::path& sequence, const SystemOptions& options) {
+/// The sequence with the sensors `mode` uses.
+std::unique_ptr<io::DatasetSource> openSequence(const fs::path& sequence, SensorMode mode) {
   io::DatasetSourceOptions source_options;
-  source_options.inertial = usesImu(options.mode);
-  source_options.stereo = !isMonocular(options.mode);
-  const auto source = io::openDataset(io::DatasetKind::kEuroc, sequence, source_options);
-  System slam(options, source->camera0(), source->camera1(), source->imu());
-  slam.run(*source);
+  source_options.inertial = usesImu(mode);
+  source_options.stereo = !isMonocular(mode);
+  return io::openDataset(io::DatasetKind::kEuroc, sequence, source_options);
+}
+
+/// RPE over frames; a monocular map has its own unit: it is compared after a similarity
+/// alignment.
+eval::EvaluationOptions evaluationOptions(SensorMode mode) {
   eval::EvaluationOptions evaluation;
   evaluation.rpe.unit = eval::DeltaUnit::kFrames;
-  // A monocular map has its own unit: it is compared after a similarity alignment.
-  if (options.mode == SensorMode::kMono) evaluation.align = eval::AlignmentMode::kSim3;
+  if (mode == SensorMode::kMono) evaluation.align = eval::AlignmentMode::kSim3;
+  return evaluation;
+}
+
+LoopRun runOn(const fs::path& sequence, const SystemOptions& options) {
+  const auto source = openSequence(sequence, options.mode);
+  System slam(options, source->camera0(), source->camera1(), source->imu());
+  slam.run(*source);
   const eval::EvaluationResult result =
-      eval::evaluate(source->groundTruth(), slam.trajectory(), evaluation);
+      eval::evaluate(source->groundTruth(), slam.trajectory(), evaluationOptions(options.mode));
   LoopRun run;
   run.ate_m = result.ate_trans.rmse;
   run.loops = slam.loopSummary();
@@ -416,44 +427,29 @@ void expectTrueMerges(const MergeRun& run) {
   expectTrueClosures(run.loops.merges, run.ground_truth, run.T_b_c);
 }
 
-/// A blackout: both images black from t0_s to t1_s (from the first frame).
-struct Blackout {
-  double t0_s = 0.0;
-  double t1_s = 0.0;
-};
+using test::Blackout;
 
 /// `options` over `sequence` with the blackout, without relocalisation (tracker.relocalization_s
 /// 0): the first frame tracking fails at, or the first after the IMU bridge, leaves the map, and a
 /// new one starts as soon as the images allow.
 MergeRun runBlackout(const fs::path& sequence, SystemOptions options, const Blackout& blackout) {
-  io::DatasetSourceOptions source_options;
-  source_options.inertial = usesImu(options.mode);
-  source_options.stereo = !isMonocular(options.mode);
-  const auto source = io::openDataset(io::DatasetKind::kEuroc, sequence, source_options);
+  const auto source = openSequence(sequence, options.mode);
   options.tracker.relocalization_s = 0.0;
   System slam(options, source->camera0(), source->camera1(), source->imu());
   std::optional<TimeNs> t_first;
   while (auto frame = source->next()) {
     if (!t_first) t_first = frame->t_ns;
-    const double t_s = nsToSeconds(frame->t_ns - *t_first);
-    if (t_s >= blackout.t0_s && t_s < blackout.t1_s) {
-      frame->image0.setTo(0);
-      if (!frame->image1.empty()) frame->image1.setTo(0);
-    }
+    blackout.apply(*frame, nsToSeconds(frame->t_ns - *t_first));
     slam.process(*frame);
   }
   slam.finish();
-  eval::EvaluationOptions evaluation;
-  evaluation.rpe.unit = eval::DeltaUnit::kFrames;
-  if (options.mode == SensorMode::kMono) evaluation.align = eval::AlignmentMode::kSim3;
+  const eval::EvaluationOptions evaluation = evaluationOptions(options.mode);
   const Trajectory trajectory = slam.trajectory();
   MergeRun run;
   run.ate_m = eval::evaluate(source->groundTruth(), trajectory, evaluation).ate_trans.rmse;
   Trajectory seen;  // the black frames' poses are constant-velocity predictions
-  for (const StampedPose& p : trajectory) {
-    const double t_s = nsToSeconds(p.t_ns - *t_first);
-    if (t_s < blackout.t0_s || t_s >= blackout.t1_s) seen.push_back(p);
-  }
+  for (const StampedPose& p : trajectory)
+    if (!blackout.covers(nsToSeconds(p.t_ns - *t_first))) seen.push_back(p);
   run.seen_ate_m = eval::evaluate(source->groundTruth(), seen, evaluation).ate_trans.rmse;
   run.resets = slam.resets();
   run.lost = slam.lostFrames();

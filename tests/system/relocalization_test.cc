@@ -33,11 +33,6 @@ fs::path streetSequence(const fs::path& motion, double start_s) {
       "relocalization_test_street_" + std::to_string(static_cast<int>(start_s)), options);
 }
 
-struct Blackout {
-  double t0_s = 0.0;  ///< From the first frame [s].
-  double t1_s = 0.0;
-};
-
 struct BlackoutRun {
   double ate_m = 0.0;
   double path_m = 0.0;
@@ -51,7 +46,7 @@ struct BlackoutRun {
 /// The shipped configuration of `mode` (then `adjust`), deterministic, over the sequence; with a
 /// blackout both images are black in its interval.
 BlackoutRun runStreet(const fs::path& sequence, SensorMode mode, const std::string& config,
-                      const std::optional<Blackout>& blackout,
+                      const std::optional<test::Blackout>& blackout,
                       const std::function<void(SystemOptions&)>& adjust = {}) {
   io::DatasetSourceOptions source_options;
   source_options.inertial = usesImu(mode);
@@ -65,11 +60,7 @@ BlackoutRun runStreet(const fs::path& sequence, SensorMode mode, const std::stri
   std::optional<TimeNs> t_first;
   while (auto frame = source->next()) {
     if (!t_first) t_first = frame->t_ns;
-    const double t_s = nsToSeconds(frame->t_ns - *t_first);
-    if (blackout && t_s >= blackout->t0_s && t_s < blackout->t1_s) {
-      frame->image0.setTo(0);
-      if (!frame->image1.empty()) frame->image1.setTo(0);
-    }
+    if (blackout) blackout->apply(*frame, nsToSeconds(frame->t_ns - *t_first));
     slam.process(*frame);
   }
   eval::EvaluationOptions evaluation;
@@ -98,7 +89,7 @@ void expectResumesInItsMap(SensorMode mode, const std::string& config) {
   SUPERDYNA_REQUIRE_SHARED(motion, "data/trajectories/euroc/V2_02_medium.txt");
   const fs::path sequence = streetSequence(motion, 5.0);
   const BlackoutRun clean = runStreet(sequence, mode, config, std::nullopt);
-  const BlackoutRun blackout = runStreet(sequence, mode, config, Blackout{9.0, 11.0});
+  const BlackoutRun blackout = runStreet(sequence, mode, config, test::Blackout{9.0, 11.0});
   EXPECT_EQ(clean.lost, 0u);
   EXPECT_EQ(clean.resets, 0);
   EXPECT_EQ(blackout.lost, 40u);
@@ -124,7 +115,7 @@ TEST(Relocalisation, MonoInertialResumesInItsMapAfterATwoSecondBlackout) {
 TEST(Relocalisation, StereoInertialContinuesItsMapFromTheImuWhenTheViewIsNew) {
   SUPERDYNA_REQUIRE_SHARED(motion, "data/trajectories/euroc/V2_02_medium.txt");
   const fs::path sequence = streetSequence(motion, 17.0);
-  const Blackout blackout{8.0, 10.0};
+  const test::Blackout blackout{8.0, 10.0};
   const BlackoutRun reanchored =
       runStreet(sequence, SensorMode::kStereoInertial, "euroc_stereo_inertial.yaml", blackout);
   const BlackoutRun waited =
