@@ -495,7 +495,8 @@ class RunCommand : public Command {
     sub_->add_option("--loop-closing", loop_closing_,
                      "Loop closing (overrides loop.enabled): on | off. SE(3) loops in stereo and "
                      "inertial maps (mono-inertial once its inertial stages have run), Sim(3) "
-                     "loops in mono maps")
+                     "loops in mono maps; with it, a map left after a tracking failure is kept "
+                     "and merged into the new one when it sees its places again")
         ->check(CLI::IsMember({"on", "off"}));
     sub_->add_option("--save-map", save_map_,
                      "Write the map at the end of the run to this file (versioned binary map "

@@ -67,7 +67,7 @@
 namespace superdyna::loop {
 
 struct LoopClosingOptions {
-  bool enabled = true;  ///< Run loop closing.
+  bool enabled = true;  ///< Run loop closing (and with it the atlas and map merging).
   KeyFrameDatabaseOptions database;
   double min_time_gap_s = 10.0;  ///< Candidates are at least this much older [s], >= 0.
   double min_score = 0.02;       ///< Absolute bar on the database score, [0, 1].
