@@ -16,7 +16,7 @@ build_type=${BUILD_TYPE:-Release}
 jobs=${JOBS:-$(nproc)}
 
 packages=(
-  cmake g++ make pkg-config git
+  cmake g++ make pkg-config git ccache
   libeigen3-dev libopencv-dev libceres-dev libyaml-cpp-dev libcli11-dev
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev libboost-math-dev
   libgtest-dev libgmock-dev libbenchmark-dev libfaiss-dev libcereal-dev
