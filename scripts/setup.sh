@@ -31,6 +31,8 @@ packages=(
   # superdyna sweep: GNU parallel and a single-node Slurm cluster (scripts/slurm_local_cluster.sh)
   # to dispatch cells, headless Chromium to check the HTML report
   parallel munge slurmctld slurmd slurm-client chromium
+  # The documentation site (mkdocs.yml, docs/), built with warnings as errors by the tests
+  mkdocs
 )
 
 missing_packages() {
