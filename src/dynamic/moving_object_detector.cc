@@ -169,39 +169,89 @@ std::optional<Eigen::Vector2d> MovingObjectDetector::staticLanding(
 std::vector<MovingObjectDetector::Pair> MovingObjectDetector::matchPairs(
     const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
     bool movable, bool wide, const std::vector<Pair>& already) const {
-  const features::FeatureSet& query = *previous.features;
-  std::vector<char> skip(query.size(), 0);
+  std::vector<char> query(previous.features->size(), 0);
+  for (std::size_t i = 0; i < query.size(); ++i)
+    query[i] = isMovable(previous.features->keypoints[i]) == movable;
   for (const Pair& pair : already)
-    skip[static_cast<std::size_t>(pair.previous)] = 1;
+    query[static_cast<std::size_t>(pair.previous)] = 0;
+  // Candidates of the same kind only (movable or background): the wide object search would
+  // otherwise sort through every keypoint within 120 px.
+  std::vector<char> candidate(current.features->size(), 0);
+  for (std::size_t j = 0; j < candidate.size(); ++j)
+    candidate[j] = isMovable(current.features->keypoints[j]) == movable;
+  const double radius = wide              ? options_.object_search_radius_px
+                        : current.depth_m ? options_.background_radius_px
+                                          : 2.0 * options_.background_radius_px;
+  return searchPairs(previous, current, T_cur_prev, query, candidate, radius, true);
+}
+
+std::vector<MovingObjectDetector::Pair> MovingObjectDetector::searchPairs(
+    const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
+    const std::vector<char>& query, std::vector<char> candidate, double radius_px,
+    bool same_class_only) const {
   std::vector<Eigen::Vector2d> predicted(query.size(), Eigen::Vector2d::Constant(kNaN));
   for (std::size_t i = 0; i < query.size(); ++i) {
-    if (isMovable(query.keypoints[i]) != movable || skip[i]) continue;
+    if (!query[i]) continue;
     if (const auto pixel = staticLanding(previous, i, T_cur_prev)) predicted[i] = *pixel;
   }
   features::ProjectionMatchOptions search;
-  search.radius_px = wide              ? options_.object_search_radius_px
-                     : current.depth_m ? options_.background_radius_px
-                                       : 2.0 * options_.background_radius_px;
+  search.radius_px = radius_px;
   search.ratio = options_.match_ratio;
   search.max_distance = options_.max_hamming;
   search.max_l2_distance = options_.max_l2_distance;
-  search.same_class_only = true;
-  // Candidates of the same kind only (movable or background): the wide object search would
-  // otherwise sort through every keypoint within 120 px. Cells of half the radius keep a wide
-  // query to a few cells.
+  search.same_class_only = same_class_only;
   const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
-  std::vector<char> candidate(keypoints.size(), 0);
-  for (std::size_t j = 0; j < keypoints.size(); ++j) {
-    candidate[j] = isMovable(keypoints[j]) == movable && finite((*current.normalized)[j]);
-  }
+  for (std::size_t j = 0; j < keypoints.size(); ++j)
+    candidate[j] = candidate[j] && finite((*current.normalized)[j]);
+  // Cells of half the radius keep a wide query to a few cells.
   const int cell_px = std::max(20, static_cast<int>(search.radius_px / 2.0));
   const features::KeypointGrid grid(keypoints, current.features->image_size, cell_px, candidate);
   std::vector<Pair> pairs;
-  for (const features::Match& match :
-       features::matchByProjection(query, predicted, *current.features, grid, search)) {
+  for (const features::Match& match : features::matchByProjection(
+           *previous.features, predicted, *current.features, grid, search)) {
     pairs.push_back({match.query, match.train});
   }
   return pairs;
+}
+
+std::set<int> MovingObjectDetector::addBackgroundPairsOfUnpairedObjects(
+    const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
+    std::map<int, std::vector<Pair>>& pairs_of) const {
+  // The objects without enough pairs among the previous frame's movable keypoints, and the box
+  // of each one's keypoints widened by the background search radius.
+  const std::vector<features::Keypoint>& keypoints = current.features->keypoints;
+  std::map<int, Eigen::AlignedBox2d> boxes;
+  for (const features::Keypoint& keypoint : keypoints) {
+    if (!isMovable(keypoint)) continue;
+    const auto found = pairs_of.find(keypoint.instance_id);
+    const int paired = found == pairs_of.end() ? 0 : static_cast<int>(found->second.size());
+    if (paired < options_.min_pairs) boxes[keypoint.instance_id].extend(keypoint.pixel);
+  }
+  if (boxes.empty()) return {};
+  const Eigen::Vector2d margin = Eigen::Vector2d::Constant(options_.background_radius_px);
+  for (auto& [instance, box] : boxes)
+    box = Eigen::AlignedBox2d(box.min() - margin, box.max() + margin);
+  // Previous background keypoints that would land in such a box if they stood still: the
+  // object's own points if the segmenter missed it (or made it up) in the previous frame.
+  std::vector<char> query(previous.features->size(), 0);
+  for (std::size_t i = 0; i < query.size(); ++i) {
+    if (isMovable(previous.features->keypoints[i])) continue;
+    const auto pixel = staticLanding(previous, i, T_cur_prev);
+    if (!pixel) continue;
+    query[i] = std::any_of(boxes.begin(), boxes.end(),
+                           [&](const auto& entry) { return entry.second.contains(*pixel); });
+  }
+  std::vector<char> candidate(keypoints.size(), 0);
+  for (std::size_t j = 0; j < keypoints.size(); ++j)
+    candidate[j] = isMovable(keypoints[j]) && boxes.count(keypoints[j].instance_id);
+  std::set<int> paired;
+  for (const Pair& pair : searchPairs(previous, current, T_cur_prev, query, candidate,
+                                      options_.object_search_radius_px, false)) {
+    const int instance = keypoints[static_cast<std::size_t>(pair.current)].instance_id;
+    pairs_of[instance].push_back(pair);
+    paired.insert(instance);
+  }
+  return paired;
 }
 
 SE3d MovingObjectDetector::refinedMotion(const std::vector<Pair>& background,
@@ -528,9 +578,14 @@ void MovingObjectDetector::applyHysteresis(ObjectDecision& decision, bool tested
       track.state = ObjectState::kStatic;
     }
   }
-  decision.decision = track.state;
-  decision.dropped = track.state == ObjectState::kMoving ||
-                     (track.state == ObjectState::kUnverified && options_.drop_unverified);
+  applyTrackState(decision);
+}
+
+void MovingObjectDetector::applyTrackState(ObjectDecision& decision) {
+  const ObjectState state = tracks_[decision.track_id].state;
+  decision.decision = state;
+  decision.dropped = state == ObjectState::kMoving ||
+                     (state == ObjectState::kUnverified && options_.drop_unverified);
 }
 
 void MovingObjectDetector::testObjects(const std::map<int, std::vector<Pair>>& pairs_of,
@@ -648,6 +703,7 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
   }
 
   std::map<int, std::vector<Pair>> pairs_of;  // by current instance id
+  std::set<int> on_background;                // objects paired with the previous frame's background
   std::vector<char> moving_cells;
   const bool test_objects = options_.mode == DynamicMode::kSemanticGeometric;
   SE3d T_motion = T_cur_prev;  // refined on the background where possible
@@ -672,10 +728,13 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
     }
     std::vector<Pair> all_pairs = background;
     if (test_objects) {
-      for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true, true, {})) {
+      for (const Pair& pair : matchPairs(*previous, current, T_cur_prev, true, true, {}))
         pairs_of[keypoints[pair.current].instance_id].push_back(pair);
-        all_pairs.push_back(pair);
-      }
+      if (options_.background_pairs_for_new_objects)
+        on_background =
+            addBackgroundPairsOfUnpairedObjects(*previous, current, T_cur_prev, pairs_of);
+      for (const auto& [instance, pairs] : pairs_of)
+        all_pairs.insert(all_pairs.end(), pairs.begin(), pairs.end());
       testObjects(pairs_of, *previous, current, baselines, objects);
     }
     rememberChains(all_pairs, *previous, current, T);
@@ -700,11 +759,21 @@ MovingObjectReport MovingObjectDetector::detect(const FrameObservations* previou
       const int needed =
           std::max(std::min(options_.min_votes, object.tested),
                    static_cast<int>(std::ceil(options_.moving_vote_share * object.tested)));
-      applyHysteresis(object, object.tested > 0 && object.votes >= needed);
+      const bool tested_moving = object.tested > 0 && object.votes >= needed;
+      // Pairs with the background can only clear an object: the background they come from was
+      // partly where the object now stands, and it may just have come out from behind it.
+      if (tested_moving && on_background.count(instance)) {
+        applyTrackState(object);
+      } else {
+        applyHysteresis(object, tested_moving);
+      }
     }
     if (object.decision == ObjectState::kMoving) {
+      // The map points of its keypoints in the previous frame go; those of keypoints labelled
+      // background there stay (its pairs with them may be the background it now hides).
       for (const Pair& pair : pairs_of[instance]) {
-        report.moving_previous_keypoints.push_back(pair.previous);
+        if (isMovable(previous->features->keypoints[static_cast<std::size_t>(pair.previous)]))
+          report.moving_previous_keypoints.push_back(pair.previous);
       }
     }
     report.objects.push_back(object);

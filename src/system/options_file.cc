@@ -243,6 +243,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"clear_static_pairs", &t.dynamic.clear_static_pairs},
         {"moving_confirmations", &t.dynamic.moving_confirmations},
         {"drop_unverified", &t.dynamic.drop_unverified},
+        {"background_pairs_for_new_objects", &t.dynamic.background_pairs_for_new_objects},
         {"cull_points_by_instance", &t.dynamic.cull_points_by_instance},
         {"background_radius_px", &t.dynamic.background_radius_px},
         {"object_search_radius_px", &t.dynamic.object_search_radius_px},

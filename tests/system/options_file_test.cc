@@ -128,6 +128,7 @@ dynamic:
   clear_static_pairs: 5
   moving_confirmations: 3
   drop_unverified: false
+  background_pairs_for_new_objects: false
   cull_points_by_instance: false
   background_radius_px: 25
   object_search_radius_px: 100
@@ -305,7 +306,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 244u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 245u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

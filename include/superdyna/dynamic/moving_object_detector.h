@@ -17,23 +17,30 @@
 //    threshold_scale * median scaled background residual), times the scale of the pair tested.
 //    The paper takes the mean background distance; the median ignores the background's own
 //    mismatches and unlabelled movers. Too few background pairs: fallback_threshold_px.
-// 4. Objects. The pairs of each current instance are grouped; objects with fewer than min_pairs
-//    are unverified this frame. Otherwise up to max_tested_pairs pairs are drawn (seeded, so that
-//    deterministic runs stay bit-identical) and tested, each over the longest baseline it has (up
-//    to baseline_frames): a pair whose previous keypoint continues pairs of the frames before is
-//    tested from the earliest of them, with the chained refined motion and thresholds from the
-//    background's links over the same frames. The longest links are drawn first, shorter ones
-//    fill the room left. Test: reprojection where the earlier keypoint has stereo depth
-//    (stereo_reprojection), else epipolar (the distance to the part of the line a static point
-//    at positive depth can reach, motion_residual.h), or rotation transfer when the predicted
-//    translation is below min_translation_m. The object moves in this frame when at least
-//    max(min(min_votes, tested), ceil(moving_vote_share * tested)) tested pairs exceed the
-//    threshold of their test (the paper: any one pair). With skip_border_pairs, pairs with a
-//    keypoint on the object's mask border (features::Keypoint::on_instance_border) are left out
-//    when the object has others: such a corner is formed with the background behind the
-//    silhouette and slides along it as the camera moves, and its stereo depth may be the
-//    background's (a parked car's border pairs were 6-8 px off under stereo reprojection while
-//    its inner pairs were within 1 px).
+// 4. Objects. The pairs of each current instance are grouped. An object with fewer than min_pairs
+//    of them (background_pairs_for_new_objects) is also paired with the previous frame's
+//    background keypoints that would land in its box if they stood still: a segmenter on real
+//    images labels an object in one frame and not in the next (a false detection on a building,
+//    a parked car it misses every other frame), and without pairs such an object could only be
+//    dropped unverified. Such pairs can only clear an object: found moving on them, it keeps its
+//    track's state (unverified for a new one) and the map points of those background keypoints
+//    stay, since the background they come from may be what the object now hides. Objects still
+//    with fewer than min_pairs are unverified this frame.
+//    Otherwise up to max_tested_pairs pairs are drawn (seeded, so that deterministic runs stay
+//    bit-identical) and tested, each over the longest baseline it has (up to baseline_frames): a
+//    pair whose previous keypoint continues pairs of the frames before is tested from the earliest
+//    of them, with the chained refined motion and thresholds from the background's links over the
+//    same frames. The longest links are drawn first, shorter ones fill the room left. Test:
+//    reprojection where the earlier keypoint has stereo depth (stereo_reprojection), else epipolar
+//    (the distance to the part of the line a static point at positive depth can reach,
+//    motion_residual.h), or rotation transfer when the predicted translation is below
+//    min_translation_m. The object moves in this frame when at least max(min(min_votes, tested),
+//    ceil(moving_vote_share * tested)) tested pairs exceed the threshold of their test (the paper:
+//    any one pair). With skip_border_pairs, pairs with a keypoint on the object's mask border
+//    (features::Keypoint::on_instance_border) are left out when the object has others: such a
+//    corner is formed with the background behind the silhouette and slides along it as the camera
+//    moves, and its stereo depth may be the background's (a parked car's border pairs were 6-8 px
+//    off under stereo reprojection while its inner pairs were within 1 px).
 // 5. Identity and hysteresis. Network segmenters do not keep instance ids across frames, so an
 //    object inherits the track of the previous instance most of its pairs come from (greedily,
 //    strongest links first, each previous track to one object; an object with no pairs to a
@@ -99,6 +106,9 @@ struct MovingObjectOptions {
   int clear_static_pairs = 3;
   int moving_confirmations = 2;  ///< Moving frames in a row that set a static track, >= 1.
   bool drop_unverified = true;   ///< Drop objects never verified (new, too few pairs).
+  /// Pair an object that has too few pairs among the previous frame's objects with the previous
+  /// frame's background keypoints in its place (see the file comment, step 4).
+  bool background_pairs_for_new_objects = true;
   /// The tracker also culls the local map's points whose instance id is that of a moving object:
   /// right when instance ids are stable over the sequence (dataset masks); `superdyna run` turns it
   /// off for other segmenters, which renumber instances every frame (then only the points of the
@@ -258,6 +268,19 @@ class MovingObjectDetector {
   std::vector<Pair> matchPairs(const FrameObservations& previous, const FrameObservations& current,
                                const SE3d& T_cur_prev, bool movable, bool wide,
                                const std::vector<Pair>& already) const;
+  /// Pairs of the previous keypoints marked in `query`, searched among the current keypoints
+  /// marked in `candidate` within `radius_px` of where a static point lands.
+  std::vector<Pair> searchPairs(const FrameObservations& previous, const FrameObservations& current,
+                                const SE3d& T_cur_prev, const std::vector<char>& query,
+                                std::vector<char> candidate, double radius_px,
+                                bool same_class_only) const;
+  /// Objects with fewer than min_pairs pairs to the previous frame's movable keypoints (a new
+  /// detection, true or false) are paired with the previous frame's background keypoints that
+  /// would land in their box if they stood still (background_pairs_for_new_objects). Returns the
+  /// objects that got such pairs.
+  std::set<int> addBackgroundPairsOfUnpairedObjects(
+      const FrameObservations& previous, const FrameObservations& current, const SE3d& T_cur_prev,
+      std::map<int, std::vector<Pair>>& pairs_of) const;
   /// T_cur_prev refined on the background pairs with previous stereo depth (relative_motion.h).
   SE3d refinedMotion(const std::vector<Pair>& background, const FrameObservations& previous,
                      const FrameObservations& current, const SE3d& T_cur_prev) const;
@@ -315,6 +338,8 @@ class MovingObjectDetector {
   /// A frame's verdict that clears a moving track at once (clear_static_pairs).
   bool clearlyStatic(const ObjectDecision& decision) const;
   void applyHysteresis(ObjectDecision& decision, bool tested_moving);
+  /// The decision and drop of an object from its track's state as it is.
+  void applyTrackState(ObjectDecision& decision);
   /// Keeps only the tracks of the current frame's objects (an object is followed from one frame
   /// to the next only).
   void forgetUnseenTracks(const std::map<int, int>& track_of_instance);
