@@ -51,10 +51,17 @@ void printTimings(const system::SystemOptions& options, const system::TimingSumm
       t.meanMs(t.total.extract_ms), t.meanMs(t.total.stereo_ms), t.meanMs(t.total.track_ms),
       t.meanMs(t.total.local_ba_ms), t.keyframes,
       t.keyframes > 0 ? t.total.local_ba_ms / static_cast<double>(t.keyframes) : 0.0);
-  if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff) {
-    fmt::print("moving-object test ({}): {:.3f} ms per frame (part of track)\n",
-               dynamic::toString(options.tracker.dynamic.mode),
-               t.meanMs(t.total.moving_objects_ms));
+  if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
+      options.tracker.dynamic.geometric) {
+    const system::MovingObjectCounts& m = t.moving_objects;
+    fmt::print(
+        "moving-object test ({}): {:.3f} ms per frame (part of track); dropped {} of {} keypoints "
+        "({:.2f} %, {} by the geometric test); object-frames {} moving, {} static, {} unverified\n",
+        dynamic::toString(options.tracker.dynamic.mode), t.meanMs(t.total.moving_objects_ms),
+        m.dropped, m.keypoints,
+        m.keypoints > 0 ? 100.0 * static_cast<double>(m.dropped) / static_cast<double>(m.keypoints)
+                        : 0.0,
+        m.geometric_dropped, m.moving, m.static_objects, m.unverified);
   }
   if (options.deterministic) {
     const double cpu_ms = t.busy.front_end_ms + t.busy.extraction_helper_ms +

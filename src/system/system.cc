@@ -344,6 +344,19 @@ tracking::TrackingResult System::process(const sensors::FrameBundle& bundle) {
   return result;
 }
 
+void System::countMovingObjects(const tracking::Frame& frame,
+                                const dynamic::MovingObjectReport& report) {
+  MovingObjectCounts& counts = timings_.moving_objects;
+  counts.keypoints += static_cast<long>(frame.size());
+  counts.dropped += report.dropped;
+  counts.geometric_dropped += report.geometric_dropped;
+  for (const dynamic::ObjectDecision& object : report.objects) {
+    counts.moving += object.decision == dynamic::ObjectState::kMoving;
+    counts.static_objects += object.decision == dynamic::ObjectState::kStatic;
+    counts.unverified += object.decision == dynamic::ObjectState::kUnverified;
+  }
+}
+
 tracking::TrackingResult System::track(const tracking::Frame& frame) {
   const double cpu_start = threadCpuMs();
   const tracking::TrackingResult result = tracker_.track(frame);
@@ -353,6 +366,7 @@ tracking::TrackingResult System::track(const tracking::Frame& frame) {
   timings_.matches.stereo_cross_class += frame.cross_class_stereo;
   timings_.matches.map += result.matches;
   timings_.matches.map_cross_class += result.cross_class_matches;
+  countMovingObjects(frame, result.moving);
   ++timings_.frames;
   if (result.keyframe) {
     ++timings_.keyframes;

@@ -106,6 +106,16 @@ struct MatchCounts {
   long map_cross_class = 0;     ///< ... between a map point and a keypoint of other classes.
 };
 
+/// What the moving-object test removed, summed over the processed frames.
+struct MovingObjectCounts {
+  long keypoints = 0;          ///< Left keypoints of the frames (before the test).
+  long dropped = 0;            ///< ... dropped by the test (objects and the geometric test).
+  long geometric_dropped = 0;  ///< ... of them background keypoints of the geometric test.
+  long moving = 0;             ///< Object-frames decided moving.
+  long static_objects = 0;     ///< Object-frames decided static.
+  long unverified = 0;         ///< Object-frames left unverified.
+};
+
 /// Sums of the per-stage times over the processed frames [ms], and match counts.
 struct TimingSummary {
   std::size_t frames = 0;
@@ -119,6 +129,7 @@ struct TimingSummary {
   std::size_t propagated_frames = 0;  ///< Frames with masks propagated (every_n_frames > 1).
   double propagate_ms = 0.0;          ///< Mask propagation, summed.
   MatchCounts matches;
+  MovingObjectCounts moving_objects;
   double meanMs(double total_ms) const { return frames > 0 ? total_ms / frames : 0.0; }
   double framesPerSecond() const { return wall_s > 0.0 ? frames / wall_s : 0.0; }
 };
@@ -217,6 +228,8 @@ class System {
 
  private:
   tracking::TrackingResult track(const tracking::Frame& frame);
+  /// Adds the frame's keypoints and what the moving-object test removed of them to the counts.
+  void countMovingObjects(const tracking::Frame& frame, const dynamic::MovingObjectReport& report);
   /// The front end's frame of a bundle, its keypoints labelled with the segmenter's masks when
   /// there is one. Runs in the front-end thread.
   tracking::Frame buildFrame(const sensors::FrameBundle& bundle);
