@@ -15,6 +15,7 @@
 #include "superdyna/semantics/mask_perturbation.h"
 #include "superdyna/semantics/maskrcnn_segmenter.h"
 #include "superdyna/semantics/sam_segmenter.h"
+#include "superdyna/semantics/segmenter_errors.h"
 #include "superdyna/semantics/yolo_segmenter.h"
 
 namespace superdyna::semantics {
@@ -205,6 +206,7 @@ void SegmenterOptions::validate() const {
   if (mask_dilate < 0) throw OptionError("semantics.mask_dilate", "must be >= 0");
   if (mask_erode < 0) throw OptionError("semantics.mask_erode", "must be >= 0");
   if (every_n_frames < 1) throw OptionError("semantics.every_n_frames", "must be >= 1");
+  errors.validate();
   propagation.validate();
   yolo.validate();
   maskrcnn.validate();
@@ -242,9 +244,15 @@ std::unique_ptr<Segmenter> makeSegmenter(const SegmenterOptions& options,
 
 std::unique_ptr<Segmenter> withPerturbation(const SegmenterOptions& options,
                                             std::unique_ptr<Segmenter> segmenter) {
-  if (options.mask_dilate == 0 && options.mask_erode == 0) return segmenter;
-  return std::make_unique<PerturbedSegmenter>(std::move(segmenter), options.mask_dilate,
-                                              options.mask_erode);
+  if (options.mask_dilate != 0 || options.mask_erode != 0) {
+    segmenter = std::make_unique<PerturbedSegmenter>(std::move(segmenter), options.mask_dilate,
+                                                     options.mask_erode);
+  }
+  if (options.errors.enabled()) {
+    // After the perturbation: false objects lie on the background the dilated masks leave.
+    segmenter = std::make_unique<ErrorInjectingSegmenter>(std::move(segmenter), options.errors);
+  }
+  return segmenter;
 }
 
 }  // namespace superdyna::semantics

@@ -210,6 +210,12 @@ semantics:
   right_labels: left
   mask_dilate: 2
   mask_erode: 1
+  error_false_objects_per_frame: 1.5
+  error_false_object_frames: 4
+  error_false_object_min_px: 30
+  error_false_object_max_px: 120
+  error_miss_rate: 0.1
+  error_seed: 7
   every_n_frames: 3
   propagation_radius_px: 30
   propagation_max_hamming: 50
@@ -306,7 +312,7 @@ TEST(OptionsFileWriter, AllKeysRoundTripExactly) {
   const std::map<std::string, std::string> defaults = valuesOf(formatSystemOptions({}));
   const std::map<std::string, std::string> written = valuesOf(formatSystemOptions(options));
   ASSERT_EQ(written.size(), defaults.size());
-  EXPECT_EQ(written.size(), 245u);  // every key of the twelve sections
+  EXPECT_EQ(written.size(), 251u);  // every key of the twelve sections
   for (const auto& [key, value] : written) {
     ASSERT_TRUE(defaults.contains(key)) << key;
     EXPECT_NE(value, defaults.at(key)) << key << " keeps its default";

