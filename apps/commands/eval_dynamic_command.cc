@@ -33,7 +33,9 @@ class EvalDynamicCommand : public Command {
         "eval-dynamic",
         "Score moving-object decisions (superdyna run --dynamic-log) against a simulated "
         "sequence's ground truth (mav0/instance_states.csv): per object-frame precision and "
-        "recall of 'moving', and the share of features kept on static movable objects");
+        "recall of 'moving', and the share of features kept on static movable objects; false "
+        "objects injected by semantics.error_false_objects_per_frame (ids from 32768 up) count "
+        "as static objects");
     sub_->add_option("--log", log_, "The run's --dynamic-log CSV")
         ->required()
         ->check(CLI::ExistingFile);
@@ -66,6 +68,9 @@ class EvalDynamicCommand : public Command {
     for (const auto& [name, counts] : score.by_class)
       printRow(name, counts);
     printRow("all", score.all);
+    const eval::DecisionCounts& injected = score.injected;
+    if (injected.few_pairs + injected.unverified + injected.true_static + injected.false_moving > 0)
+      printRow("injected false objects (in all, static)", injected);
     fmt::print("object-frames with fewer pairs: {}; not in the ground truth: {}\n",
                score.all.few_pairs, score.all.unknown);
     return 0;

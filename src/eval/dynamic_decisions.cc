@@ -6,6 +6,7 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/io/text_table.h"
+#include "superdyna/semantics/segmenter_error_options.h"
 
 namespace superdyna::eval {
 
@@ -104,17 +105,25 @@ InstanceStates readInstanceStates(const std::filesystem::path& file) {
   return states;
 }
 
+bool isInjectedObject(int instance_id) {
+  return instance_id >= semantics::kInjectedObjectIdBase &&
+         instance_id <= semantics::kInjectedObjectIdLast;
+}
+
 DecisionScore scoreDecisions(const std::vector<DecisionRow>& rows, const InstanceStates& truth,
                              int min_pairs) {
   DecisionScore score;
   for (const DecisionRow& row : rows) {
     const auto found = truth.find({row.t_ns, row.instance_id});
-    if (found == truth.end()) {
+    const bool injected = found == truth.end() && isInjectedObject(row.instance_id);
+    if (found == truth.end() && !injected) {
       ++score.all.unknown;
       continue;
     }
-    count(row, found->second, min_pairs, score.all);
-    count(row, found->second, min_pairs, score.by_class[row.class_name]);
+    const bool moving = injected ? false : found->second;  // false objects are static structure
+    count(row, moving, min_pairs, score.all);
+    count(row, moving, min_pairs, score.by_class[row.class_name]);
+    if (injected) count(row, moving, min_pairs, score.injected);
   }
   return score;
 }

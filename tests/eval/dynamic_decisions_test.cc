@@ -51,6 +51,42 @@ TEST(DynamicDecisionsTest, ScoresObjectFramesAgainstTheInstanceStates) {
   EXPECT_EQ(score.by_class.at("pedestrian").unverified, 1);
 }
 
+TEST(DynamicDecisionsTest, InjectedFalseObjectsAreScoredAsStaticObjects) {
+  test::ScratchDir dir("dynamic_decisions_injected");
+  writeFile(dir.path() / "states.csv", "100,1,0,500,500\n100,2,1,800,790\n");
+  // 32768 and 32769 are injected false objects (semantics.error_*), absent from the truth; 99 is
+  // a real id the truth does not list.
+  writeFile(dir.path() / "log.csv", std::string(kHeader) +
+                                        "100,1,vehicle,20,10,1.0,2.0,static,30,0\n"
+                                        "100,2,vehicle,15,10,9.0,2.0,moving,25,25\n"
+                                        "100,32768,vehicle,20,10,1.0,2.0,static,40,0\n"
+                                        "100,32769,pedestrian,12,10,8.0,2.0,moving,10,10\n"
+                                        "100,32770,vehicle,3,3,0.5,2.0,unverified,6,6\n"
+                                        "100,99,vehicle,20,10,1.0,2.0,static,30,0\n");
+  const DecisionScore score = scoreDecisions(readDynamicLog(dir.path() / "log.csv"),
+                                             readInstanceStates(dir.path() / "states.csv"), 8);
+  const DecisionCounts& all = score.all;
+  EXPECT_EQ(all.true_moving, 1);   // 2
+  EXPECT_EQ(all.false_moving, 1);  // 32769: a false object decided moving
+  EXPECT_EQ(all.true_static, 2);   // 1, 32768
+  EXPECT_EQ(all.few_pairs, 1);     // 32770
+  EXPECT_EQ(all.unknown, 1);       // 99
+  EXPECT_DOUBLE_EQ(all.precision(), 0.5);
+  EXPECT_DOUBLE_EQ(all.recall(), 1.0);
+  // Static features: 30 of 30 (id 1), 40 of 40, 0 of 10, 0 of 6.
+  EXPECT_EQ(all.static_keypoints, 86);
+  EXPECT_EQ(all.static_kept, 70);
+  EXPECT_EQ(score.injected.static_keypoints, 56);
+  EXPECT_EQ(score.injected.static_kept, 40);
+  EXPECT_EQ(score.injected.false_moving, 1);
+  EXPECT_EQ(score.injected.unknown, 0);
+  EXPECT_EQ(score.by_class.at("pedestrian").false_moving, 1);
+  EXPECT_TRUE(isInjectedObject(32768));
+  EXPECT_TRUE(isInjectedObject(65534));
+  EXPECT_FALSE(isInjectedObject(32767));
+  EXPECT_FALSE(isInjectedObject(65535));
+}
+
 TEST(DynamicDecisionsTest, MalformedRowNamesFileLineAndField) {
   test::ScratchDir dir("dynamic_decisions_malformed");
   writeFile(dir.path() / "log.csv",

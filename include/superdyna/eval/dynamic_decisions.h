@@ -6,6 +6,13 @@
 // `min_pairs` matched features and a decision (moving or static) enter precision and recall;
 // unverified rows are counted apart. The share of features kept on static movable objects counts
 // every row whose agent stands still at that frame.
+//
+// False objects injected by the simulated segmenter errors (semantics.error_*,
+// semantics/segmenter_errors.h) have ids from semantics::kInjectedObjectIdBase up, which the
+// ground truth never lists: such a row is scored as a static object (its features lie on static
+// structure, so dropping them loses static features and deciding it moving is a false moving),
+// in `all`, in its class and in DecisionScore::injected. Other rows the ground truth does not list
+// are counted as unknown and left out.
 
 #include <cstdint>
 #include <filesystem>
@@ -41,7 +48,7 @@ struct DecisionCounts {
   long true_moving = 0, false_moving = 0, missed_moving = 0, true_static = 0;
   long unverified = 0;  ///< Rows with enough pairs but no decision.
   long few_pairs = 0;   ///< Rows with fewer than min_pairs.
-  long unknown = 0;     ///< Rows whose (t_ns, id) the ground truth does not list.
+  long unknown = 0;     ///< Rows whose (t_ns, id) the ground truth does not list (not injected).
   long static_keypoints = 0, static_kept = 0;  ///< On objects that stand still.
   long moving_keypoints = 0, moving_dropped = 0;
   double precision() const;  ///< NaN without a moving decision.
@@ -51,9 +58,13 @@ struct DecisionCounts {
 };
 
 struct DecisionScore {
-  DecisionCounts all;
+  DecisionCounts all;  ///< Every row the ground truth lists, and the injected false objects.
   std::map<std::string, DecisionCounts> by_class;
+  DecisionCounts injected;  ///< The injected false objects alone (all static).
 };
+
+/// Whether a logged instance id is an injected false object's (semantics/segmenter_errors.h).
+bool isInjectedObject(int instance_id);
 
 DecisionScore scoreDecisions(const std::vector<DecisionRow>& rows, const InstanceStates& truth,
                              int min_pairs);
