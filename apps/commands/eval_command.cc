@@ -90,7 +90,8 @@ class EvalCommand : public Command {
     sub_->add_option("--offset", args_.offset_s, "Added to the estimate's timestamps [s]")
         ->capture_default_str();
     sub_->add_option("--rpe-delta", args_.rpe_delta,
-                     "RPE pair separation: metres of ground-truth path, or frames")
+                     "RPE pair separation: metres of ground-truth path, or frames (a path "
+                     "shorter than it gets the ATE and a warning instead of an RPE)")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     sub_->add_option("--rpe-unit", args_.rpe_unit,
@@ -168,6 +169,7 @@ class EvalCommand : public Command {
     options.rpe.delta = args_.rpe_delta;
     options.rpe.unit =
         args_.rpe_unit == "frames" ? eval::DeltaUnit::kFrames : eval::DeltaUnit::kMeters;
+    options.require_rpe = false;  // a path shorter than the delta still has an ATE
     return options;
   }
 
@@ -229,8 +231,18 @@ class EvalCommand : public Command {
     return options;
   }
 
+  /// The RPE left out of a run (its path is shorter than the delta) and how to get one.
+  static void warnIfRpeMissing(const eval::EvaluationResult& result, const std::string& name) {
+    if (result.rpe_missing.empty()) return;
+    spdlog::warn(
+        "{}: {}: the RPE is left out; use a --rpe-delta shorter than that path, or --rpe-unit "
+        "frames",
+        name, result.rpe_missing);
+  }
+
   void reportSingle(const Trajectory& gt, const eval::EvaluationResult& result,
                     const std::string& name) const {
+    warnIfRpeMissing(result, name);
     fmt::print("{}", eval::formatTable(result));
     if (args_.json) writeJson(*args_.json, eval::toJson(result));
     if (args_.plot) {
@@ -241,6 +253,8 @@ class EvalCommand : public Command {
   }
 
   void reportMultiple(const Trajectory& gt, const eval::MultiRunResult& runs) const {
+    for (const eval::NamedRun& run : runs.runs)
+      warnIfRpeMissing(run.result, run.name);
     fmt::print("{}", eval::formatTable(runs));
     if (args_.json) writeJson(*args_.json, eval::toJson(runs));
     if (args_.plot) {

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <limits>
+
 #include "superdyna/core/error.h"
 
 namespace superdyna::eval {
@@ -15,6 +17,18 @@ std::vector<double> collect(const std::vector<NamedRun>& runs, Metric metric) {
   for (const NamedRun& run : runs)
     values.push_back(metric(run.result));
   return values;
+}
+
+/// The RPE of the runs that have one (a path shorter than the delta has none: require_rpe false);
+/// no runs, no statistics (RunStatistics::runs 0, values NaN).
+template <typename Metric>
+RunStatistics summarizeRpe(const std::vector<NamedRun>& runs, Metric metric) {
+  std::vector<double> values;
+  for (const NamedRun& run : runs)
+    if (run.result.rpe_missing.empty()) values.push_back(metric(run.result));
+  if (!values.empty()) return summarizeRunValues(values);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  return {0, nan, nan, nan, nan};
 }
 
 }  // namespace
@@ -36,10 +50,8 @@ MultiRunResult summarizeRuns(std::vector<NamedRun> runs) {
   MultiRunResult result;
   result.ate_rmse =
       summarizeRunValues(collect(runs, [](const EvaluationResult& r) { return r.ate_trans.rmse; }));
-  result.rpe_trans =
-      summarizeRunValues(collect(runs, [](const EvaluationResult& r) { return r.rpe_trans.rmse; }));
-  result.rpe_rot =
-      summarizeRunValues(collect(runs, [](const EvaluationResult& r) { return r.rpe_rot.rmse; }));
+  result.rpe_trans = summarizeRpe(runs, [](const EvaluationResult& r) { return r.rpe_trans.rmse; });
+  result.rpe_rot = summarizeRpe(runs, [](const EvaluationResult& r) { return r.rpe_rot.rmse; });
   result.runs = std::move(runs);
   return result;
 }

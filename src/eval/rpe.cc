@@ -113,7 +113,7 @@ RpeResult computeRpe(const std::vector<SE3d>& gt, const std::vector<SE3d>& est, 
     const double path_m = gt.empty() ? 0.0 : cumulativePathLength(gt).back();
     throw InputError(fmt::format(
         "RPE: no pose pair is {} {} apart (the {} associated ground-truth poses span {} frames "
-        "and {:.3f} m of path); use a smaller --delta",
+        "and {:.3f} m of path)",
         options.delta, toString(options.unit), gt.size(), gt.empty() ? 0 : gt.size() - 1, path_m));
   }
   // Metres: normalise by the nominal segment length, as the KITTI devkit does.

@@ -111,6 +111,27 @@ TEST(ReportTest, TablesShowEveryMetric) {
   EXPECT_NE(formatTable(summarizeRuns({runs[0]})).find("± n/a"), std::string::npos);
 }
 
+TEST(ReportTest, TablesShowAMissingRpeAsNotComputed) {
+  EvaluationResult result = evaluateNoisyCircle(4);
+  const EvaluationResult with_rpe = evaluateNoisyCircle(5);
+  result.rpe_missing = "RPE: no pose pair is 1 m apart";
+  const std::string table = formatTable(result);
+  EXPECT_NE(table.find("RPE:        not computed (no pose pair is 1 m apart)"), std::string::npos)
+      << table;
+  EXPECT_NE(table.find(fmt::format("{:.6f}", result.ate_trans.rmse)), std::string::npos);
+  EXPECT_NE(table.find("RPE trans [m/m]            n/a"), std::string::npos) << table;
+  // Over runs, the RPE statistics are those of the runs that have one.
+  const MultiRunResult runs = summarizeRuns({{"short", result}, {"long", with_rpe}});
+  EXPECT_EQ(runs.rpe_trans.runs, 1u);
+  EXPECT_DOUBLE_EQ(runs.rpe_trans.median, with_rpe.rpe_trans.rmse);
+  EXPECT_EQ(runs.ate_rmse.runs, 2u);
+  const MultiRunResult none = summarizeRuns({{"short", result}});
+  EXPECT_EQ(none.rpe_trans.runs, 0u);
+  const std::string multi = formatTable(none);
+  EXPECT_NE(multi.find("n/a"), std::string::npos) << multi;
+  EXPECT_TRUE(toJson(none)["summary"]["rpe_trans_median"].is_null());
+}
+
 TEST(ReportTest, WritesSvgAndPngPlots) {
   test::ScratchDir dir("eval_plot");
   const Trajectory gt = circle();

@@ -30,9 +30,11 @@ struct NamedRun {
 
 struct MultiRunResult {
   std::vector<NamedRun> runs;
-  RunStatistics ate_rmse;   ///< Over the runs' ATE RMSE [m].
-  RunStatistics rpe_trans;  ///< Over the runs' RPE translation RMSE (unit of the RPE delta).
-  RunStatistics rpe_rot;    ///< Over the runs' RPE rotation RMSE.
+  RunStatistics ate_rmse;  ///< Over the runs' ATE RMSE [m].
+  /// Over the RPE translation RMSE of the runs that have an RPE (unit of the RPE delta); `runs`
+  /// 0 and NaN values when none has (paths shorter than the delta).
+  RunStatistics rpe_trans;
+  RunStatistics rpe_rot;  ///< Over the runs' RPE rotation RMSE, as rpe_trans.
 };
 
 /// Summarises already evaluated runs; throws InputError when `runs` is empty.

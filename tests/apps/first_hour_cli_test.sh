@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# End-to-end checks of what a new user meets first (issue 54), one case per ctest test:
+#   eval_short_path      eval on a path shorter than the RPE delta prints the ATE, skips the RPE
+#                        with a warning naming --rpe-delta, and exits 0.
+# Usage: first_hour_cli_test.sh SUPERDYNA CASE
+set -euo pipefail
+superdyna=$1 case=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+fail() { echo "FAIL: $*"; exit 1; }
+
+# Writes a TUM trajectory of N poses 50 ms apart: a wobble of AMPLITUDE metres along x and y with
+# a climb of CLIMB metres per pose, plus NOISE metres of deterministic jitter on x (the estimate).
+write_path() {  # file poses amplitude climb noise
+  python3 - "$@" <<'PY'
+import math, sys
+path, n, amplitude, climb, noise = sys.argv[1], int(sys.argv[2]), *map(float, sys.argv[3:6])
+with open(path, "w") as out:
+    for i in range(n):
+        x = amplitude * math.sin(0.3 * i) + noise * math.sin(2.7 * i + 1.0)
+        y = amplitude * math.cos(0.2 * i)
+        out.write("%.3f %.9f %.9f %.9f 0 0 0 1\n" % (0.05 * i, x, y, climb * i))
+PY
+}
+
+case_eval_short_path() {
+  # 95 poses over 4.7 s and 0.23 m of path (as the EuRoC excerpt's standing start): no pair is
+  # 1 m apart.
+  write_path "$work/gt.txt" 95 0.01 0.0002 0
+  write_path "$work/est.txt" 95 0.01 0.0002 0.002
+  local code=0
+  "$superdyna" eval --gt "$work/gt.txt" --est "$work/est.txt" --json "$work/eval.json" \
+    >"$work/eval.log" 2>&1 || code=$?
+  cat "$work/eval.log"
+  [ "$code" -eq 0 ] || fail "exit code $code, expected 0"
+  grep -q '^ATE trans \[m\] ' "$work/eval.log" || fail "no ATE row"
+  grep -q 'est.txt: RPE: no pose pair is 1 m apart (.*): the RPE is left out' "$work/eval.log" ||
+    fail "no warning that the RPE was left out"
+  grep -q '^RPE: *not computed (no pose pair is 1 m apart' "$work/eval.log" ||
+    fail "the table does not say why the RPE is missing"
+  grep -q -- '--rpe-delta' "$work/eval.log" || fail "the hint does not name --rpe-delta"
+  if grep -q -- '--delta' <(sed 's/--rpe-delta//g' "$work/eval.log"); then
+    fail "the hint names --delta, which does not exist"
+  fi
+  grep -q '^RPE trans \[m/m\] *n/a' "$work/eval.log" || fail "the RPE row is not n/a"
+  python3 - "$work/eval.json" <<'PY'
+import json, sys
+report = json.load(open(sys.argv[1]))
+assert report["rpe_trans"] is None and "1 m apart" in report["rpe_missing"], report
+assert 0.0005 < report["ate_rmse"] < 0.003, report["ate_rmse"]
+print("ATE rmse %.4f m over %d pairs; RPE null" % (report["ate_rmse"], report["pairs"]))
+PY
+  # A delta the path holds gives an RPE again.
+  "$superdyna" eval --gt "$work/gt.txt" --est "$work/est.txt" --rpe-delta 0.05 >"$work/rpe.log"
+  grep -q '^RPE trans \[m/m\] *[0-9]' "$work/rpe.log" || fail "no RPE with --rpe-delta 0.05"
+}
+
+"case_$case"
+echo "$case: passed"
