@@ -297,15 +297,32 @@ class StopSignals {
   Handler previous_term_;
 };
 
-/// Serves the frames of another source until a stop signal arrives, then ends the sequence: the
-/// pipeline finishes the frames it already read.
+/// The input error that ended a run early: the frame that could not be read and why.
+struct InputStop {
+  std::size_t frame = 0;  ///< Index of the frame that failed (frames before it were served).
+  std::string file;       ///< The file the error names ("" when it names none).
+  std::string message;    ///< The error, as InputError::what() gives it.
+};
+
+/// Serves the frames of another source until a stop signal arrives or a frame cannot be read (an
+/// InputError: a damaged image, a bad row), then ends the sequence: the pipeline finishes the
+/// frames it already read, and the run writes their outputs as at a signal.
 class StoppableSource final : public io::DatasetSource {
  public:
   explicit StoppableSource(io::DatasetSource& source) : source_(source) {}
   std::optional<sensors::FrameBundle> next() override {
-    if (StopSignals::received() != 0) return std::nullopt;
-    return source_.next();
+    if (StopSignals::received() != 0 || input_stop_) return std::nullopt;
+    try {
+      std::optional<sensors::FrameBundle> bundle = source_.next();
+      if (bundle) ++served_;
+      return bundle;
+    } catch (const InputError& e) {
+      input_stop_ = InputStop{served_, e.location().file.string(), e.what()};
+      return std::nullopt;
+    }
   }
+  /// Set when a frame could not be read.
+  const std::optional<InputStop>& inputStop() const { return input_stop_; }
   std::size_t size() const override { return source_.size(); }
   const sensors::CameraCalibration& camera0() const override { return source_.camera0(); }
   const std::optional<sensors::CameraCalibration>& camera1() const override {
@@ -317,7 +334,18 @@ class StoppableSource final : public io::DatasetSource {
 
  private:
   io::DatasetSource& source_;
+  std::size_t served_ = 0;
+  std::optional<InputStop> input_stop_;
 };
+
+/// Says where an input error stopped the run, before its outputs are written.
+void reportInputStop(const InputStop& stop, std::size_t frames, std::size_t total) {
+  fmt::print(
+      "stopped by an input error at frame {} of {} (0-based index{}): writing the outputs of the "
+      "{} frames before it\n",
+      stop.frame, total, stop.file.empty() ? "" : ", file " + stop.file, frames);
+  std::fflush(stdout);
+}
 
 /// One line per IMU gap the tracker met (tracker.imu_max_gap_s), with the dataset times [ns].
 void reportImuGap(const tracking::ImuGap& gap, TimeNs frame_t_ns, double max_gap_s) {
@@ -780,9 +808,12 @@ class RunCommand : public Command {
       heap_release.tick();
     });
     const int stopped_by = StopSignals::received();
+    const std::optional<InputStop>& input_stop = stoppable.inputStop();
     if (stopped_by != 0) {
       fmt::print("stopped by {} after {} of {} frames: writing the outputs of the frames so far\n",
                  StopSignals::name(stopped_by), slam.timings().frames, source->size());
+    } else if (input_stop) {
+      reportInputStop(*input_stop, slam.timings().frames, source->size());
     }
     const system::TimingSummary& t = slam.timings();
     const Trajectory keyframes = slam.keyFrameTrajectory();
@@ -824,6 +855,11 @@ class RunCommand : public Command {
     // Visual-only monocular trajectories have no metric scale.
     if (options.mode == system::SensorMode::kMono) {
       printAccuracy(source->groundTruth(), trajectory, eval::AlignmentMode::kSim3);
+    }
+    if (input_stop) {
+      // The error last, where the user looks for it; the outputs of the frames before it are
+      // written.
+      throw InputError(input_stop->message);
     }
     return stopped_by == 0 ? 0 : 128 + stopped_by;  // the shell's code for a signal's end
   }

@@ -2,6 +2,10 @@
 # End-to-end checks of what a new user meets first (issue 54), one case per ctest test:
 #   eval_short_path      eval on a path shorter than the RPE delta prints the ATE, skips the RPE
 #                        with a warning naming --rpe-delta, and exits 0.
+#   run_input_error      a damaged image in the middle of a sequence stops the run with exit code
+#                        2 and a message naming the frame and the file, and the trajectory of the
+#                        frames before it is written whole (no temporary file left), sequential
+#                        and concurrent.
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -54,6 +58,44 @@ PY
   # A delta the path holds gives an RPE again.
   "$superdyna" eval --gt "$work/gt.txt" --est "$work/est.txt" --rpe-delta 0.05 >"$work/rpe.log"
   grep -q '^RPE trans \[m/m\] *[0-9]' "$work/rpe.log" || fail "no RPE with --rpe-delta 0.05"
+}
+
+# A short simulated EuRoC-layout sequence (20 Hz stereo + IMU) in $work/seq.
+simulate_short() {  # duration [extra simulate options...]
+  local duration=$1
+  shift
+  "$superdyna" simulate --out "$work/seq" --scene street --dynamic none --duration "$duration" \
+    --seed 5 --landmarks 0 "$@" >/dev/null 2>&1 || fail "simulate failed"
+}
+
+case_run_input_error() {
+  simulate_short 1.5
+  local frames damaged
+  frames=$(grep -vc '^#' "$work/seq/mav0/cam0/data.csv")
+  damaged=$(grep -v '^#' "$work/seq/mav0/cam0/data.csv" | sed -n 13p | cut -d, -f2 | tr -d '\r')
+  head -c 300 /dev/urandom >"$work/seq/mav0/cam0/data/$damaged"  # frame 12 (0-based)
+  local pipeline
+  for pipeline in --deterministic ""; do
+    echo "-- run ${pipeline:-(concurrent)}"
+    mkdir -p "$work/out"
+    rm -f "$work/out/"*
+    local code=0
+    # shellcheck disable=SC2086
+    "$superdyna" run --path "$work/seq" --mode stereo $pipeline --output "$work/out/traj.tum" \
+      >"$work/run.log" 2>&1 || code=$?
+    grep -v '^  ' "$work/run.log"
+    [ "$code" -eq 2 ] || fail "exit code $code, expected 2"
+    grep -q "^stopped by an input error at frame 12 of $frames (0-based index, file .*cam0/data/$damaged)" \
+      "$work/run.log" || fail "no line naming frame 12 and its file"
+    grep -q "cannot decode the image" "$work/run.log" || fail "the error itself is not printed"
+    [ -f "$work/out/traj.tum" ] || fail "no trajectory written"
+    local poses
+    poses=$(grep -vc '^#' "$work/out/traj.tum")
+    [ "$poses" -eq 12 ] || fail "expected the 12 poses of the frames before the damaged one, got $poses"
+    awk '!/^#/ && NF != 8 { exit 1 }' "$work/out/traj.tum" || fail "a truncated pose row"
+    [ -s "$work/out/traj_keyframes.tum" ] || fail "no keyframe trajectory"
+    if ls "$work/out" | grep -q '\.tmp-'; then fail "a temporary file was left"; fi
+  done
 }
 
 "case_$case"
