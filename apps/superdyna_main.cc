@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "commands/command.h"
@@ -18,10 +19,22 @@
 
 namespace {
 
-/// Exit codes: 0 success, 1 command-line usage error (CLI11), 2 bad input or options,
-/// 3 unexpected internal error.
+/// Exit codes as --help documents them (kExitCodes): 0 success, 1 command-line usage error
+/// (CLI11: an unknown option, a missing or invalid value, a path that does not exist), 2 bad input
+/// or options, 3 unexpected internal error; `run` stopped by a signal: 128 + its number.
+constexpr int kExitUsage = 1;
 constexpr int kExitBadInput = 2;
 constexpr int kExitInternal = 3;
+constexpr const char* kExitCodes =
+    "Exit codes: 0 ok, 1 usage error (unknown option, missing or invalid value, path not found), "
+    "2 bad input or options (the message names the file, line or option), 3 internal error; "
+    "run stopped by SIGINT or SIGTERM: 130 or 143, after writing its outputs.";
+
+/// CLI11's own exit codes (105 for a failed check, 106 for a missing option, ...) are all usage
+/// errors; --help and --version exit with 0.
+int exitOnParseError(const CLI::App& app, const CLI::ParseError& error) {
+  return app.exit(error) == 0 ? 0 : kExitUsage;
+}
 
 int runChosen(const std::vector<std::unique_ptr<superdyna::apps::Command>>& commands) {
   for (const auto& command : commands) {
@@ -37,7 +50,8 @@ int main(int argc, char** argv) {
                "superdyna"};
   app.set_version_flag("--version", std::string(SUPERDYNA_VERSION));
   app.require_subcommand(1);
-  app.footer("Run 'superdyna <command> --help' for the options of one command.");
+  app.footer(std::string("Run 'superdyna <command> --help' for the options of one command.\n") +
+             kExitCodes);
 
   std::vector<std::unique_ptr<superdyna::apps::Command>> commands;
   commands.push_back(superdyna::apps::makeEvalCommand(app));
@@ -48,10 +62,16 @@ int main(int argc, char** argv) {
   commands.push_back(superdyna::apps::makeRunCommand(app));
   commands.push_back(superdyna::apps::makeSweepCommand(app));
 
+  for (const auto& command : commands) {
+    CLI::App* sub = command->subcommand();
+    const std::string footer = sub->get_footer();
+    sub->footer(footer.empty() ? std::string(kExitCodes) : footer + "\n" + kExitCodes);
+  }
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    return exitOnParseError(app, e);
   }
   try {
     return runChosen(commands);

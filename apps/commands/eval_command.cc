@@ -127,8 +127,7 @@ class EvalCommand : public Command {
         ->check(CLI::ExistingFile);
     sub_->footer(
         "Formats are detected from the content unless given. TUM: 't tx ty tz qx qy qz qw' (s); "
-        "EuRoC: 't_ns,px,py,pz,qw,qx,qy,qz,...'; KITTI: 12 numbers a line (3x4 pose).\n"
-        "Exit codes: 0 ok, 1 usage error, 2 bad input or options.");
+        "EuRoC: 't_ns,px,py,pz,qw,qx,qy,qz,...'; KITTI: 12 numbers a line (3x4 pose).");
   }
 
   CLI::App* subcommand() const override { return sub_; }

@@ -6,6 +6,7 @@
 #                        2 and a message naming the frame and the file, and the trajectory of the
 #                        frames before it is written whole (no temporary file left), sequential
 #                        and concurrent.
+#   exit_codes           usage errors exit with 1, bad input with 2, as --help documents.
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -96,6 +97,34 @@ case_run_input_error() {
     [ -s "$work/out/traj_keyframes.tum" ] || fail "no keyframe trajectory"
     if ls "$work/out" | grep -q '\.tmp-'; then fail "a temporary file was left"; fi
   done
+}
+
+# Runs COMMAND, expecting exit code CODE and FRAGMENT in its output.
+expect_exit() {  # code fragment command...
+  local expected=$1 fragment=$2 code=0
+  shift 2
+  "$@" >"$work/expect.log" 2>&1 || code=$?
+  [ "$code" -eq "$expected" ] ||
+    { cat "$work/expect.log"; fail "expected exit code $expected, got $code: $*"; }
+  grep -qF -- "$fragment" "$work/expect.log" ||
+    { cat "$work/expect.log"; fail "output lacks '$fragment'"; }
+}
+
+case_exit_codes() {
+  mkdir -p "$work/empty"
+  echo "0 0 0 0 0 0 0 1" >"$work/x.tum"
+  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" run --help
+  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" eval --help
+  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" --help
+  expect_exit 1 "--path: Path does not exist" \
+    "$superdyna" run --path "$work/missing/" --output "$work/x.tum"
+  expect_exit 1 "--output is required" "$superdyna" run --path "$work/empty"
+  expect_exit 1 "The following argument was not expected: --bogus" \
+    "$superdyna" eval --gt "$work/x.tum" --est "$work/x.tum" --bogus
+  expect_exit 1 "A subcommand is required" "$superdyna"
+  # Bad input (here a dataset folder without cam0) is exit code 2.
+  expect_exit 2 "cam0" "$superdyna" info --dataset euroc --path "$work/empty"
+  cat "$work/expect.log"
 }
 
 "case_$case"
