@@ -413,14 +413,68 @@ const Section* findSection(const std::vector<Section>& table, const std::string&
   return section == table.end() ? nullptr : &*section;
 }
 
+/// Levenshtein distance: the fewest insertions, deletions and substitutions from a to b.
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j)
+    row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t substitution = diagonal + (a[i - 1] == b[j - 1] ? 0 : 1);
+      diagonal = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, substitution});
+    }
+  }
+  return row[b.size()];
+}
+
+/// A misspelling is at most this far from what was meant: two edits, or one in three characters.
+std::size_t nearEnough(const std::string& name) {
+  return std::max<std::size_t>(2, name.size() / 3);
+}
+
+/// "; did you mean 'tracker.min_inliers'?" for the known key nearest to section.key (a key of
+/// another section costs one edit more than the same key here), or "" when none is near.
+std::string nearestKeyHint(const std::vector<Section>& table, const std::string& section,
+                           const std::string& key) {
+  std::string best;
+  std::size_t best_cost = nearEnough(key) + 1;
+  for (const Section& s : table) {
+    for (const Key& k : s.keys) {
+      const std::size_t cost = editDistance(key, k.name) + (section == s.name ? 0 : 1);
+      if (cost >= best_cost) continue;
+      best_cost = cost;
+      best = fmt::format("{}.{}", s.name, k.name);
+    }
+  }
+  return best.empty() ? "" : "; did you mean '" + best + "'?";
+}
+
+/// "; did you mean 'tracker'?" for the section nearest to `name`, or "".
+std::string nearestSectionHint(const std::vector<Section>& table, const std::string& name) {
+  std::string best;
+  std::size_t best_cost = nearEnough(name) + 1;
+  for (const Section& s : table) {
+    const std::size_t cost = editDistance(name, s.name);
+    if (cost >= best_cost) continue;
+    best_cost = cost;
+    best = s.name;
+  }
+  return best.empty() ? "" : "; did you mean '" + best + "'?";
+}
+
 void readSection(const io::YamlFile& file, const std::string& name, const YAML::Node& node,
-                 const Section& section) {
+                 const Section& section, const std::vector<Section>& table) {
   if (!node.IsMap()) throw InputError(file.at(node, name), "expected a map of options");
   for (const auto& entry : node) {
     const std::string field = name + "." + entry.first.Scalar();
     const Key* key = findKey(section, entry.first.Scalar());
     if (key == nullptr) {
-      throw InputError(file.at(entry.first, field), "unknown key '" + field + "'");
+      throw InputError(
+          file.at(entry.first, field),
+          "unknown key '" + field + "'" + nearestKeyHint(table, name, entry.first.Scalar()));
     }
     read(file, entry.second, field, key->field);
   }
@@ -438,9 +492,10 @@ SystemOptions loadSystemOptions(const std::filesystem::path& path, SystemOptions
     const std::string name = entry.first.Scalar();
     const Section* section = findSection(table, name);
     if (section == nullptr) {
-      throw InputError(file.at(entry.first, name), "unknown section '" + name + "'");
+      throw InputError(file.at(entry.first, name),
+                       "unknown section '" + name + "'" + nearestSectionHint(table, name));
     }
-    readSection(file, name, entry.second, *section);
+    readSection(file, name, entry.second, *section, table);
   }
   try {
     defaults.validate();

@@ -369,6 +369,31 @@ TEST(OptionsFileWriter, AChangedOptionChangesTheFile) {
             std::nextafter(0.8, 1.0));
 }
 
+TEST(OptionsFileReader, AnUnknownKeySuggestsTheNearestKnownOne) {
+  const test::ScratchDir dir("system_options_unknown");
+  const auto expectHint = [&](const std::string& text, std::initializer_list<std::string> parts) {
+    test::writeFile(dir / "bad.yaml", text);
+    test::expectError([&] { loadSystemOptions(dir / "bad.yaml"); }, parts);
+  };
+  // A misspelt key of its section, a key put into another section, a misspelt section.
+  expectHint(
+      "tracker:\n  min_inlier: 5\n",
+      {"bad.yaml:2", "unknown key 'tracker.min_inlier'; did you mean 'tracker.min_inliers'?"});
+  expectHint("tracker:\n  refine_first_s: 4\n",
+             {"unknown key 'tracker.refine_first_s'; did you mean 'mapping.refine_first_s'?"});
+  expectHint("trackr:\n  min_inliers: 5\n",
+             {"bad.yaml:1", "unknown section 'trackr'; did you mean 'tracker'?"});
+  // Nothing near: no guess.
+  test::writeFile(dir / "far.yaml", "tracker:\n  zebra: 1\n");
+  try {
+    loadSystemOptions(dir / "far.yaml");
+    FAIL() << "an unknown key was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown key 'tracker.zebra'"), std::string::npos);
+    EXPECT_EQ(std::string(e.what()).find("did you mean"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OptionsFileWriter, AnUnwritableFileIsAnErrorNamingIt) {
   const test::ScratchDir dir("system_options_unwritable");
   test::expectError([&] { writeSystemOptions(dir / "missing" / "x.yaml", SystemOptions{}); },
