@@ -15,12 +15,15 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 
 #include "commands/output_files.h"
 #include "superdyna/core/error.h"
 #include "superdyna/core/process_memory.h"
 #include "superdyna/eval/evaluate.h"
 #include "superdyna/io/dataset_source.h"
+#include "superdyna/io/euroc_dataset.h"
+#include "superdyna/io/kitti_dataset.h"
 #ifdef SUPERDYNA_WITH_ROSBAG
 #include "superdyna/bag/bag_segmenter.h"
 #include "superdyna/bag/bag_source.h"
@@ -400,6 +403,65 @@ std::pair<int, int> printClosures(const char* kind, const std::vector<loop::Loop
   return {false_closures, checked};
 }
 
+/// One line per inertial initialisation stage as the tracker applies it to the current map (a new
+/// map starts again from none), and a warning at the end of an inertial run that had none.
+class InertialStageLines {
+ public:
+  InertialStageLines(const system::SystemOptions& options, bool print)
+      : options_(options), print_(print && system::usesImu(options.mode)) {}
+
+  void update(const system::System& slam, const tracking::TrackingResult& result) {
+    if (!first_t_ns_) first_t_ns_ = result.t_ns;
+    const int stages = slam.inertialStages();
+    if (stages > stages_) {
+      ++applied_;
+      if (print_) printStage(stages, slam, result);
+    }
+    stages_ = stages;
+  }
+
+  /// The warning of an inertial run whose maps were never initialised (visual-only poses).
+  void warnIfNoneRan() const {
+    if (!system::usesImu(options_.mode) || applied_ > 0) return;
+    const mapping::InertialMapInitOptions& init = options_.mapping.inertial_init;
+    fmt::print(
+        "warning: the inertial initialisation never ran (it needs a map of {} keyframes over "
+        "{} s): the IMU only predicted the poses, and the map is not gravity-aligned{}\n",
+        init.min_keyframes, init.min_duration_s,
+        system::isMonocular(options_.mode) ? " nor metric" : "");
+  }
+
+ private:
+  int totalStages() const {
+    return 1 + (options_.mapping.refine_first_s > 0.0 ? 1 : 0) +
+           (options_.mapping.refine_second_s > 0.0 ? 1 : 0);
+  }
+
+  void printStage(int stage, const system::System& slam,
+                  const tracking::TrackingResult& result) const {
+    const bool mono = system::isMonocular(options_.mode);
+    const std::string what = stage == 1 ? (mono ? "gravity, scale, velocities and IMU biases"
+                                                : "gravity, velocities "
+                                                  "and IMU biases")
+                                        : (stage == 2 ? "first refinement" : "second refinement");
+    const std::string scale = mono && result.world_change
+                                  ? fmt::format(", map scaled by {:.4f}", result.world_change->s)
+                                  : std::string();
+    fmt::print(
+        "inertial initialisation: stage {} of {} ({}) at frame {}, {:.2f} s into the run; map of "
+        "{} keyframes{}\n",
+        stage, totalStages(), what, slam.timings().frames - 1,
+        nsToSeconds(result.t_ns - *first_t_ns_), slam.numKeyFrames(), scale);
+    std::fflush(stdout);
+  }
+
+  const system::SystemOptions& options_;
+  bool print_;
+  int stages_ = 0;
+  int applied_ = 0;
+  std::optional<TimeNs> first_t_ns_;
+};
+
 /// Loops and merges accepted, stage times and, with a ground truth, each one's relative-pose
 /// error (the verified relative pose against the true one, loop::loopError): one off by more
 /// than 0.5 m or 5 degrees is called false.
@@ -464,8 +526,10 @@ class RunCommand : public Command {
                      "of the bag's ground-truth topic")
         ->check(CLI::ExistingFile);
     sub_->add_option("--mode", mode_,
-                     "Sensor mode: stereo | stereo-inertial | mono | mono-inertial")
-        ->capture_default_str();
+                     "Sensor mode: stereo | stereo-inertial | mono | mono-inertial (default: what "
+                     "the dataset holds: two cameras and an IMU -> stereo-inertial, two cameras "
+                     "-> stereo, one camera and an IMU -> mono-inertial, one camera -> mono)")
+        ->check(CLI::IsMember({"stereo", "stereo-inertial", "mono", "mono-inertial"}));
     sub_->add_option("--output", output_, "Trajectory file to write")->required();
     sub_->add_option("--format", format_, "Trajectory format")
         ->check(CLI::IsMember({"tum", "euroc", "kitti"}))
@@ -544,6 +608,11 @@ class RunCommand : public Command {
                    "With --load-map: locate the first frame in the loaded map and track against "
                    "it without changing it (no keyframes, points, bundle adjustment or loop "
                    "closing)");
+    sub_->add_flag("--print-config", print_config_,
+                   "Print the effective options (they are always written to <output "
+                   "stem>_config.yaml beside --output)");
+    sub_->add_flag("--quiet", quiet_,
+                   "Print only warnings, errors and the final summary (no progress lines)");
     sub_->add_flag(
         "--deterministic", deterministic_,
         "Sequential, single-threaded run: bit-identical output for the same input "
@@ -551,6 +620,38 @@ class RunCommand : public Command {
   }
 
   CLI::App* subcommand() const override { return sub_; }
+
+  /// Prints unless --quiet (warnings and the final summary are printed either way).
+  template <typename... Args>
+  void inform(fmt::format_string<Args...> format, Args&&... args) const {
+    if (!quiet_) fmt::print(format, std::forward<Args>(args)...);
+  }
+
+  /// The sensors of the dataset (--dataset, --path, --topics): "two cameras and an IMU", ...
+  std::pair<bool, bool> datasetSensors() const {
+    if (kind_ == "kitti") return {io::KittiDataset::open(path_).isStereo(), false};
+#ifdef SUPERDYNA_WITH_ROSBAG
+    if (kind_ == "rosbag") {
+      const bag::BagTopics topics = bag::bagTopics(bag_topics_);
+      return {!topics.cam1.empty(), !topics.imu.empty() || !topics.gyro.empty()};
+    }
+#endif
+    if (kind_ == "rosbag") return {true, true};  // openSource says why it cannot be read
+    const io::EurocDataset dataset = io::EurocDataset::open(path_);
+    return {dataset.isStereo(), dataset.imuCalibration().has_value()};
+  }
+
+  /// --mode, or what the dataset holds (said on the output).
+  system::SensorMode sensorMode() const {
+    if (mode_) return system::parseSensorMode(*mode_);
+    const auto [stereo, imu] = datasetSensors();
+    const system::SensorMode mode =
+        stereo ? (imu ? system::SensorMode::kStereoInertial : system::SensorMode::kStereo)
+               : (imu ? system::SensorMode::kMonoInertial : system::SensorMode::kMono);
+    inform("mode: {} (the dataset has {}{}; --mode chooses another)\n", system::toString(mode),
+           stereo ? "two cameras" : "one camera", imu ? " and an IMU" : "");
+    return mode;
+  }
 
   /// The dataset folder, or the bag with its calibration.
   std::unique_ptr<io::DatasetSource> openSource(const io::DatasetSourceOptions& options) const {
@@ -702,7 +803,7 @@ class RunCommand : public Command {
     if (stats_) refuseStatsPath(keyframes_path, config_path);
     system::SystemOptions options;
     if (config_) options = system::loadSystemOptions(*config_);
-    options.mode = system::parseSensorMode(mode_);
+    options.mode = sensorMode();
     if (features_)
       options.front_end.features.type = features::parseFeatureType(*features_, "--features");
     if (model_) {
@@ -728,8 +829,8 @@ class RunCommand : public Command {
       // Network segmenters (and per-image id PNGs) renumber their instances every frame: a map
       // point's instance id says nothing about which object it lies on later.
       options.tracker.dynamic.cull_points_by_instance = false;
-      fmt::print("dynamic.cull_points_by_instance: off (segmenter {} does not keep instance ids)\n",
-                 options.semantics.segmenter);
+      inform("dynamic.cull_points_by_instance: off (segmenter {} does not keep instance ids)\n",
+             options.semantics.segmenter);
     }
     if (options.tracker.dynamic.mode != dynamic::DynamicMode::kOff &&
         options.semantics.segmenter == "none") {
@@ -761,10 +862,9 @@ class RunCommand : public Command {
                         std::move(segmenter));
     if (loaded) {
       slam.localizeIn(*loaded, *load_map_);
-      fmt::print("localization-only against {}: {} keyframes, {} points ({} features, {})\n",
-                 load_map_->string(), loaded->contents.keyframes.size(),
-                 loaded->contents.points.size(), loaded->identity.feature_type,
-                 loaded->identity.sensor_mode);
+      inform("localization-only against {}: {} keyframes, {} points ({} features, {})\n",
+             load_map_->string(), loaded->contents.keyframes.size(), loaded->contents.points.size(),
+             loaded->identity.feature_type, loaded->identity.sensor_mode);
       loaded.reset();
     }
     std::optional<OverlayWriter> overlay;
@@ -779,14 +879,19 @@ class RunCommand : public Command {
           });
     }
 
-    fmt::print("running {} SLAM with {} features ({}) on {} ({} frames)\n",
-               system::toString(options.mode), features::toString(options.front_end.features.type),
-               options.deterministic ? "deterministic" : "concurrent", path_.string(),
-               source->size());
-    fmt::print("segmentation: {}\n", segmentation);
-    const std::string effective = system::formatSystemOptions(slam.options());
-    fmt::print("effective options (written to {}):\n{}", config_path.string(), effective);
+    inform("running {} SLAM with {} features ({}) on {} ({} frames)\n",
+           system::toString(options.mode), features::toString(options.front_end.features.type),
+           options.deterministic ? "deterministic" : "concurrent", path_.string(), source->size());
+    inform("segmentation: {}\n", segmentation);
     system::writeSystemOptions(config_path, slam.options());
+    if (print_config_) {
+      fmt::print("effective options (written to {}):\n{}", config_path.string(),
+                 system::formatSystemOptions(slam.options()));
+    } else {
+      inform("effective options written to {} (--print-config prints them)\n",
+             config_path.string());
+    }
+    InertialStageLines inertial_stages(slam.options(), !quiet_);
     ProgressLine progress;
     PeriodicHeapRelease heap_release;
     std::optional<system::FrameLog> frame_log;
@@ -804,7 +909,8 @@ class RunCommand : public Command {
       if (frame_log) frame_log->write(slam.timings().frames - 1, result);
       if (dynamic_log) dynamic_log->write(result);
       if (overlay) overlay->write(result);
-      progress.update(slam.timings().frames, source->size(), result, slam);
+      inertial_stages.update(slam, result);
+      if (!quiet_) progress.update(slam.timings().frames, source->size(), result, slam);
       heap_release.tick();
     });
     const int stopped_by = StopSignals::received();
@@ -829,6 +935,7 @@ class RunCommand : public Command {
         t.frames, t.wall_s, t.framesPerSecond(), slam.lostFrames(), slam.resets(),
         slam.relocalizations(), output_.string(), keyframes_path.string(), keyframes.size());
     if (imu_gaps > 0) fmt::print("IMU gaps bridged without preintegration: {}\n", imu_gaps);
+    inertial_stages.warnIfNoneRan();
     fmt::print("frames tracked from the reference keyframe without a prediction: {}\n",
                slam.referenceTrackedFrames());
     if (slam.reanchors() > 0) {
@@ -871,7 +978,7 @@ class RunCommand : public Command {
   fs::path bag_ground_truth_;
   std::string bag_topics_ = "viode";
   fs::path path_;
-  std::string mode_ = "stereo";
+  std::optional<std::string> mode_;
   fs::path output_;
   std::optional<fs::path> keyframes_;
   std::optional<fs::path> frame_log_;
@@ -891,6 +998,8 @@ class RunCommand : public Command {
   int overlay_every_ = 10;
   std::optional<std::string> loop_closing_;
   bool deterministic_ = false;
+  bool print_config_ = false;
+  bool quiet_ = false;
   std::optional<fs::path> save_map_;
   std::optional<fs::path> load_map_;
   bool localization_only_ = false;

@@ -123,9 +123,9 @@ camera=$("$superdyna" eval --gt "$work/generated/groundtruth.txt" --est "$work/m
 echo "mono-like estimate: Sim(3) ATE of the body $body m, of the camera $camera m"
 "$python" -c "import sys; sys.exit(0 if float('$body') > 0.01 and float('$camera') < 1e-6 else 1)" ||
   { echo "--camera-frame did not evaluate the camera"; exit 1; }
-# `run` prints and writes its effective options; reloaded, they reproduce the run bit for bit.
+# `run --print-config` prints and writes its effective options; reloaded, they reproduce the run bit for bit.
 "$superdyna" run --dataset euroc --path "$work/tiny" --mode stereo-inertial --deterministic \
-  --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$work/a.txt" \
+  --config "$repo/configs/euroc_stereo_inertial.yaml" --output "$work/a.txt" --print-config \
   | tee "$work/run_a.txt"
 grep -q "^effective options (written to $work/a_config.yaml):" "$work/run_a.txt" ||
   { echo "run did not print its effective options"; exit 1; }

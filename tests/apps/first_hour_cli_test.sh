@@ -7,6 +7,9 @@
 #                        frames before it is written whole (no temporary file left), sequential
 #                        and concurrent.
 #   exit_codes           usage errors exit with 1, bad input with 2, as --help documents.
+#   run_output           run without --mode takes the dataset's sensors and says so; the options
+#                        dump only with --print-config; one line per inertial initialisation stage;
+#                        --quiet leaves warnings and the summary.
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -125,6 +128,58 @@ case_exit_codes() {
   # Bad input (here a dataset folder without cam0) is exit code 2.
   expect_exit 2 "cam0" "$superdyna" info --dataset euroc --path "$work/empty"
   cat "$work/expect.log"
+}
+
+case_run_output() {
+  simulate_short 6 --drop-frames 60
+  # The first refinement of the inertial initialisation (default: at a map age of 5 s) early
+  # enough for 6 s.
+  printf 'mapping:\n  refine_first_s: 4.5\n' >"$work/options.yaml"
+  local run=("$superdyna" run --path "$work/seq" --deterministic --config "$work/options.yaml")
+  echo "-- no --mode: the dataset's sensors"
+  "${run[@]}" --output "$work/a.tum" >"$work/a.log" 2>&1 || { cat "$work/a.log"; fail "run failed"; }
+  grep -v '^frame ' "$work/a.log"
+  grep -q '^mode: stereo-inertial (the dataset has two cameras and an IMU; --mode chooses another)$' \
+    "$work/a.log" || fail "no line saying the mode was taken from the dataset"
+  grep -q '^running stereo-inertial SLAM' "$work/a.log" || fail "not run stereo-inertially"
+  grep -q "^effective options written to $work/a_config.yaml (--print-config prints them)$" \
+    "$work/a.log" || fail "no line naming the options file"
+  [ "$(grep -c ':' "$work/a_config.yaml")" -gt 240 ] || fail "the options file is not complete"
+  if grep -q '^  [a-z_]*: ' "$work/a.log"; then fail "options dumped without --print-config"; fi
+  [ "$(grep -c '^inertial initialisation: stage 1 of 3 (gravity, velocities and IMU biases) at frame [0-9]*, [0-9.]* s into the run; map of [0-9]* keyframes$' "$work/a.log")" -eq 1 ] ||
+    fail "not one line for the first inertial stage"
+  [ "$(grep -c '^inertial initialisation: stage 2 of 3 (first refinement)' "$work/a.log")" -eq 1 ] ||
+    fail "not one line for the second inertial stage"
+  [ "$(grep -c '^inertial initialisation' "$work/a.log")" -eq 2 ] || fail "other stage lines"
+  [ "$(wc -l <"$work/a.log")" -lt 40 ] || fail "$(wc -l <"$work/a.log") lines printed"
+  echo "-- --quiet: warnings and the summary"
+  "${run[@]}" --output "$work/q.tum" --quiet >"$work/q.log" 2>&1 || fail "quiet run failed"
+  cat "$work/q.log"
+  grep -q '^warning: .*cam0/data.csv: about 1 dropped frame' "$work/q.log" ||
+    fail "--quiet dropped a warning"
+  grep -q ' frames in .* s (.* FPS)' "$work/q.log" || fail "--quiet dropped the summary"
+  grep -q '^ATE (SE(3) aligned): rmse' "$work/q.log" || fail "--quiet dropped the ATE"
+  if grep -qE '^(frame |running |mode: |effective options|inertial initialisation|segmentation: [a-z]+$)' \
+    "$work/q.log"; then fail "--quiet printed progress"; fi
+  cmp -s "$work/a.tum" "$work/q.tum" || fail "--quiet changed the trajectory"
+  echo "-- --print-config"
+  "${run[@]}" --mode stereo --max-frames 3 --output "$work/p.tum" --print-config >"$work/p.log" 2>&1
+  grep -q "^effective options (written to $work/p_config.yaml):$" "$work/p.log" ||
+    fail "--print-config did not print the options"
+  [ "$(grep -c '^  [a-z_0-9]*: ' "$work/p.log")" -gt 240 ] || fail "not every key printed"
+  expect_exit 1 "--mode: stereo-imu not in" \
+    "${run[@]}" --mode stereo-imu --output "$work/x.tum"
+  echo "-- the mode of a dataset without an IMU, of one camera and an IMU"
+  cp -r "$work/seq" "$work/stereo" && rm -r "$work/stereo/mav0/imu0"
+  "$superdyna" run --path "$work/stereo" --max-frames 3 --output "$work/s.tum" >"$work/s.log" 2>&1 ||
+    { cat "$work/s.log"; fail "stereo run failed"; }
+  grep -q '^mode: stereo (the dataset has two cameras; --mode chooses another)$' "$work/s.log" ||
+    { cat "$work/s.log"; fail "not stereo"; }
+  cp -r "$work/seq" "$work/mono" && rm -r "$work/mono/mav0/cam1"
+  "$superdyna" run --path "$work/mono" --max-frames 3 --output "$work/m.tum" >"$work/m.log" 2>&1 ||
+    { cat "$work/m.log"; fail "mono-inertial run failed"; }
+  grep -q '^mode: mono-inertial (the dataset has one camera and an IMU; --mode chooses another)$' \
+    "$work/m.log" || { cat "$work/m.log"; fail "not mono-inertial"; }
 }
 
 "case_$case"

@@ -209,6 +209,10 @@ class System {
   std::map<int, std::size_t> mapPointsPerInstance() const;
   /// The inertial initialisation has been applied to the current map.
   bool inertialInitialized() const { return tracker_.inertialInitialized(); }
+  /// Inertial initialisation stages applied to the current map (0: none yet, 1: initialised, 2
+  /// and 3: refined; mapping::LocalMapperOptions refine_first_s, refine_second_s). Read it from
+  /// the tracking thread (run()'s on_frame).
+  int inertialStages() const { return tracker_.inertialStages(); }
   /// Loop closing over the run so far (all zero when off); call after finish() for the final one.
   LoopSummary loopSummary() const;
 
