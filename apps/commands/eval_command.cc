@@ -42,6 +42,7 @@ struct EvalArguments {
   std::optional<fs::path> json;
   std::optional<fs::path> plot;
   std::string plot_plane = "auto";
+  std::string plot_span = "estimate";
   std::optional<fs::path> alignment;       ///< A report whose alignment is applied unchanged.
   std::optional<fs::path> alignment_from;  ///< Another run's estimate to align ...
   std::optional<fs::path> alignment_gt;    ///< ... to its ground truth.
@@ -105,6 +106,11 @@ class EvalCommand : public Command {
                      "Plane of the top view: xy, xz, yz, or auto (the ground truth's two axes "
                      "of largest extent: x-y for EuRoC and TUM, x-z for KITTI's camera frame)")
         ->check(CLI::IsMember({"auto", "xy", "xz", "yz"}))
+        ->capture_default_str();
+    sub_->add_option("--plot-span", args_.plot_span,
+                     "Ground truth the plot shows: estimate (the estimates' time span, from their "
+                     "first to their last associated pose) or all")
+        ->check(CLI::IsMember({"estimate", "all"}))
         ->capture_default_str();
     auto* given = sub_->add_option(
         "--alignment", args_.alignment,
@@ -239,16 +245,30 @@ class EvalCommand : public Command {
         name, result.rpe_missing);
   }
 
+  /// The --plot file: the ground truth of --plot-span and the aligned estimates.
+  void writePlot(const Trajectory& gt, const std::vector<const eval::EvaluationResult*>& results,
+                 const std::vector<eval::PlotSeries>& estimates) const {
+    const eval::PlotSpan span = eval::parsePlotSpan(args_.plot_span);
+    const Trajectory shown = eval::plottedGroundTruth(gt, results, span);
+    eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(shown, "ground truth"), estimates,
+                           plotOptions());
+    const auto since_start = [&](const StampedPose& pose) {
+      return nsToSeconds(pose.t_ns - gt.front().t_ns);
+    };
+    spdlog::info("plot written to {}: ground truth from {:.2f} s to {:.2f} s of its {:.2f} s{}",
+                 args_.plot->string(), since_start(shown.front()), since_start(shown.back()),
+                 since_start(gt.back()),
+                 span == eval::PlotSpan::kEstimate
+                     ? " (the estimate's time span; --plot-span all shows all of it)"
+                     : "");
+  }
+
   void reportSingle(const Trajectory& gt, const eval::EvaluationResult& result,
                     const std::string& name) const {
     warnIfRpeMissing(result, name);
     fmt::print("{}", eval::formatTable(result));
     if (args_.json) writeJson(*args_.json, eval::toJson(result));
-    if (args_.plot) {
-      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"),
-                             {eval::alignedEstimateSeries(result, name)}, plotOptions());
-      spdlog::info("plot written to {}", args_.plot->string());
-    }
+    if (args_.plot) writePlot(gt, {&result}, {eval::alignedEstimateSeries(result, name)});
   }
 
   void reportMultiple(const Trajectory& gt, const eval::MultiRunResult& runs) const {
@@ -257,13 +277,13 @@ class EvalCommand : public Command {
     fmt::print("{}", eval::formatTable(runs));
     if (args_.json) writeJson(*args_.json, eval::toJson(runs));
     if (args_.plot) {
+      std::vector<const eval::EvaluationResult*> results;
       std::vector<eval::PlotSeries> series;
       for (const auto& run : runs.runs) {
+        results.push_back(&run.result);
         series.push_back(eval::alignedEstimateSeries(run.result, run.name));
       }
-      eval::writeTopViewPlot(*args_.plot, eval::toPlotSeries(gt, "ground truth"), series,
-                             plotOptions());
-      spdlog::info("plot written to {}", args_.plot->string());
+      writePlot(gt, results, series);
     }
   }
 

@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "superdyna/core/error.h"
 
@@ -406,6 +407,29 @@ std::string escapeXml(const std::string& text) {
     }
   }
   return out;
+}
+
+PlotSpan parsePlotSpan(const std::string& name) {
+  if (name == "estimate") return PlotSpan::kEstimate;
+  if (name == "all") return PlotSpan::kAll;
+  throw OptionError("plot span", fmt::format("'{}' is not estimate or all", name));
+}
+
+Trajectory plottedGroundTruth(const Trajectory& gt,
+                              const std::vector<const EvaluationResult*>& results, PlotSpan span) {
+  if (span == PlotSpan::kAll) return gt;
+  std::optional<TimeNs> begin, end;
+  for (const EvaluationResult* result : results) {
+    if (result->poses.empty()) continue;
+    const TimeNs first = result->poses.front().t_ns, last = result->poses.back().t_ns;
+    begin = begin ? std::min(*begin, first) : first;
+    end = end ? std::max(*end, last) : last;
+  }
+  if (!begin) return gt;
+  Trajectory within;
+  for (const StampedPose& pose : gt)
+    if (pose.t_ns >= *begin && pose.t_ns <= *end) within.push_back(pose);
+  return within;
 }
 
 PlotPlane parsePlotPlane(const std::string& name) {

@@ -10,6 +10,8 @@
 #   run_output           run without --mode takes the dataset's sensors and says so; the options
 #                        dump only with --print-config; one line per inertial initialisation stage;
 #                        --quiet leaves warnings and the summary.
+#   eval_plot_span       eval --plot shows the ground truth of the estimate's time span by default
+#                        (--plot-span all: all of it).
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -180,6 +182,38 @@ case_run_output() {
     { cat "$work/m.log"; fail "mono-inertial run failed"; }
   grep -q '^mode: mono-inertial (the dataset has one camera and an IMU; --mode chooses another)$' \
     "$work/m.log" || { cat "$work/m.log"; fail "not mono-inertial"; }
+}
+
+# x extents (pixels) of the ground truth's and the first estimate's polylines of an SVG plot.
+polyline_extents() {  # svg
+  python3 - "$1" <<'PY'
+import re, sys
+lines = re.findall(r'<polyline points="([^"]*)"', open(sys.argv[1]).read())
+def extent(points):
+    xs = [float(p.split(",")[0]) for p in points.split()]
+    return max(xs) - min(xs)
+print("%.1f %.1f" % (extent(lines[0]), extent(lines[1])))
+PY
+}
+
+case_eval_plot_span() {
+  "$superdyna" demo --out "$work/demo" --duration 60 >/dev/null 2>&1
+  sed -n '400,500p' "$work/demo/estimate.txt" >"$work/part.txt"  # 5 s of the 60 s
+  "$superdyna" eval --gt "$work/demo/groundtruth.txt" --est "$work/part.txt" \
+    --plot "$work/part.svg" >"$work/plot.log" 2>&1
+  cat "$work/plot.log"
+  grep -qF "part.svg: ground truth from 19.90 s to 24.90 s of its 60.00 s (the estimate's time span" \
+    "$work/plot.log" || fail "the plot line does not give the estimate's span"
+  read -r gt_px est_px < <(polyline_extents "$work/part.svg")
+  echo "estimate's span: ground truth ${gt_px} px wide, estimate ${est_px} px"
+  python3 -c "import sys; sys.exit(0 if $est_px > 0.8 * $gt_px else 1)" ||
+    fail "the ground truth is wider than the estimate's span"
+  "$superdyna" eval --gt "$work/demo/groundtruth.txt" --est "$work/part.txt" \
+    --plot "$work/all.svg" --plot-span all >/dev/null 2>&1
+  read -r gt_px est_px < <(polyline_extents "$work/all.svg")
+  echo "--plot-span all: ground truth ${gt_px} px wide, estimate ${est_px} px"
+  python3 -c "import sys; sys.exit(0 if $est_px < 0.6 * $gt_px else 1)" ||
+    fail "--plot-span all does not show the whole ground truth"
 }
 
 "case_$case"

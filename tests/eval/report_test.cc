@@ -132,6 +132,25 @@ TEST(ReportTest, TablesShowAMissingRpeAsNotComputed) {
   EXPECT_TRUE(toJson(none)["summary"]["rpe_trans_median"].is_null());
 }
 
+TEST(ReportTest, PlotsShowTheGroundTruthOfTheEstimatesTimeSpan) {
+  const Trajectory gt = circle();
+  const Trajectory part(gt.begin() + 50, gt.begin() + 100);  // 2.45 s of the 9.95 s
+  const EvaluationResult result = evaluate(gt, testdata::perturbed(part, 0.02, 0.005, 2), {});
+  const Trajectory shown = plottedGroundTruth(gt, {&result}, PlotSpan::kEstimate);
+  ASSERT_EQ(shown.size(), 50u);
+  EXPECT_EQ(shown.front().t_ns, gt[50].t_ns);
+  EXPECT_EQ(shown.back().t_ns, gt[99].t_ns);
+  // Several estimates: from the earliest to the latest of them.
+  const EvaluationResult later =
+      evaluate(gt, testdata::perturbed({gt.begin() + 120, gt.begin() + 130}, 0.02, 0.005, 3), {});
+  const Trajectory both = plottedGroundTruth(gt, {&result, &later}, PlotSpan::kEstimate);
+  ASSERT_EQ(both.size(), 80u);
+  EXPECT_EQ(both.back().t_ns, gt[129].t_ns);
+  EXPECT_EQ(plottedGroundTruth(gt, {&result}, PlotSpan::kAll).size(), gt.size());
+  EXPECT_EQ(parsePlotSpan("all"), PlotSpan::kAll);
+  test::expectError<OptionError>([] { parsePlotSpan("half"); }, {"half"});
+}
+
 TEST(ReportTest, WritesSvgAndPngPlots) {
   test::ScratchDir dir("eval_plot");
   const Trajectory gt = circle();

@@ -24,6 +24,19 @@ PlotSeries toPlotSeries(const Trajectory& trajectory, const std::string& label);
 /// The aligned estimate positions of an evaluation (in the ground-truth frame).
 PlotSeries alignedEstimateSeries(const EvaluationResult& result, const std::string& label);
 
+/// How much of the ground truth a plot shows: the time span of the evaluated estimates (from their
+/// earliest to their latest associated pose, so that a short estimate on a long ground truth is
+/// visible), or all of it.
+enum class PlotSpan { kEstimate, kAll };
+/// "estimate", "all"; OptionError otherwise.
+PlotSpan parsePlotSpan(const std::string& name);
+
+/// The ground-truth poses plotted with `results` (evaluations against `gt`): with kEstimate, those
+/// from the earliest to the latest associated pose of any result; with kAll (or no associated
+/// pose), all of them.
+Trajectory plottedGroundTruth(const Trajectory& gt,
+                              const std::vector<const EvaluationResult*>& results, PlotSpan span);
+
 /// The plane a top view shows. The ground plane is x-y where z is up (EuRoC, TUM, the
 /// simulator) and x-z in a camera frame with y down (KITTI's poses); kAuto takes the two axes
 /// along which the ground truth extends furthest, which is the ground plane of any vehicle or
