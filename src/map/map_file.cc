@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <boost/crc.hpp>
 #include <cereal/archives/portable_binary.hpp>
 #include <cereal/types/map.hpp>
@@ -14,6 +15,7 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <tuple>
 #include <type_traits>
 
 #include "superdyna/core/atomic_file.h"
@@ -271,27 +273,63 @@ std::vector<std::tuple<KeyFrameId, KeyFrameId, int>> covisibilityOf(const Map& m
   return edges;
 }
 
-std::string describeCamera(const sensors::CameraCalibration& c) {
-  return fmt::format("{}x{} fx {} fy {} cx {} cy {}", c.width, c.height, c.fx, c.fy, c.cx, c.cy);
-}
-
 bool near(double a, double b) {
   return std::abs(a - b) <= 1e-6 * std::max(1.0, std::abs(a));
 }
 
-bool samePose(const SE3d& a, const SE3d& b) {
-  const SE3d d = a.inverse() * b;
-  return d.t.norm() <= 1e-6 && rotationAngle(d.rotation()) <= 1e-6;
+/// "<field>: the map's <a>, this run's <b>".
+template <typename T>
+std::string fieldDifference(const std::string& field, const T& saved, const T& current) {
+  return fmt::format("{}: the map's {}, this run's {}", field, saved, current);
 }
 
-bool sameCamera(const sensors::CameraCalibration& a, const sensors::CameraCalibration& b) {
-  if (a.width != b.width || a.height != b.height || a.distortion_model != b.distortion_model ||
-      a.distortion.size() != b.distortion.size())
-    return false;
-  for (std::size_t i = 0; i < a.distortion.size(); ++i)
-    if (!near(a.distortion[i], b.distortion[i])) return false;
-  return near(a.fx, b.fx) && near(a.fy, b.fy) && near(a.cx, b.cx) && near(a.cy, b.cy) &&
-         samePose(a.T_b_c, b.T_b_c);
+std::string formatTranslation(const Eigen::Vector3d& t) {
+  return fmt::format("({}, {}, {}) m", t.x(), t.y(), t.z());
+}
+
+/// The first difference of two poses in the body frame ("" when equal within 1e-6 m and rad):
+/// the translation with both values, or the angle between the rotations.
+std::string poseDifference(const std::string& name, const SE3d& saved, const SE3d& current) {
+  if ((saved.t - current.t).norm() > 1e-6)
+    return fieldDifference(name + " translation", formatTranslation(saved.t),
+                           formatTranslation(current.t));
+  const double angle = rotationAngle((saved.inverse() * current).rotation());
+  if (angle > 1e-6)
+    return fmt::format("{} rotation: this run's is turned {:.6g} deg from the map's", name,
+                       angle * 180.0 / M_PI);
+  return "";
+}
+
+/// Name of distortion coefficient `i`: k1 k2 p1 p2 k3 (radial-tangential), k1..k4 (equidistant).
+std::string coefficientName(DistortionModel model, std::size_t i) {
+  if (model == DistortionModel::kRadialTangential) {
+    constexpr std::array<const char*, 5> kNames = {"k1", "k2", "p1", "p2", "k3"};
+    if (i < kNames.size()) return kNames[i];
+  }
+  return fmt::format("k{}", i + 1);
+}
+
+/// The first field in which two calibrations differ, named with both values ("" when none does).
+std::string cameraDifference(const sensors::CameraCalibration& a,
+                             const sensors::CameraCalibration& b) {
+  if (a.width != b.width || a.height != b.height)
+    return fieldDifference("resolution", fmt::format("{}x{}", a.width, a.height),
+                           fmt::format("{}x{}", b.width, b.height));
+  const std::array<std::tuple<const char*, double, double>, 4> intrinsics = {
+      {{"fx", a.fx, b.fx}, {"fy", a.fy, b.fy}, {"cx", a.cx, b.cx}, {"cy", a.cy, b.cy}}};
+  for (const auto& [field, saved, current] : intrinsics)
+    if (!near(saved, current)) return fieldDifference(field, saved, current);
+  if (a.distortion_model != b.distortion_model)
+    return fieldDifference("distortion model", toString(a.distortion_model),
+                           toString(b.distortion_model));
+  if (a.distortion.size() != b.distortion.size())
+    return fieldDifference("distortion coefficients", a.distortion.size(), b.distortion.size());
+  for (std::size_t i = 0; i < a.distortion.size(); ++i) {
+    if (!near(a.distortion[i], b.distortion[i]))
+      return fieldDifference("distortion " + coefficientName(a.distortion_model, i),
+                             a.distortion[i], b.distortion[i]);
+  }
+  return poseDifference("pose in the body (T_b_c)", a.T_b_c, b.T_b_c);
 }
 
 }  // namespace
@@ -429,15 +467,17 @@ std::string identityMismatch(const MapIdentity& saved, const MapIdentity& curren
     return fmt::format("the map's rig has {} cameras, this run's {}", saved.cameras.size(),
                        current.cameras.size());
   for (std::size_t i = 0; i < saved.cameras.size(); ++i) {
-    if (!sameCamera(saved.cameras[i], current.cameras[i]))
-      return fmt::format(
-          "camera {} differs: the map's is {}, this run's {} (or its distortion or "
-          "pose in the body differs)",
-          i, describeCamera(saved.cameras[i]), describeCamera(current.cameras[i]));
+    const std::string difference = cameraDifference(saved.cameras[i], current.cameras[i]);
+    if (!difference.empty()) return fmt::format("camera {} differs in {}", i, difference);
   }
-  if (saved.T_b_i.has_value() != current.T_b_i.has_value() ||
-      (saved.T_b_i && !samePose(*saved.T_b_i, *current.T_b_i)))
-    return "the IMU's pose in the body differs from the map's";
+  if (saved.T_b_i.has_value() != current.T_b_i.has_value())
+    return fmt::format("the map {} an IMU, this run {}", saved.T_b_i ? "has" : "has no",
+                       current.T_b_i ? "has one" : "has none");
+  if (saved.T_b_i) {
+    const std::string difference =
+        poseDifference("pose in the body (T_b_i)", *saved.T_b_i, *current.T_b_i);
+    if (!difference.empty()) return "the IMU differs in " + difference;
+  }
   return "";
 }
 

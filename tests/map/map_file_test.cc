@@ -275,7 +275,36 @@ TEST(MapFile, IdentityMismatchNamesWhatDiffers) {
             std::string::npos);
   other = saved;
   other.cameras[0].fx = 400.0;
-  EXPECT_NE(identityMismatch(saved, other).find("camera 0 differs"), std::string::npos);
+  EXPECT_EQ(identityMismatch(saved, other),
+            "camera 0 differs in fx: the map's 458.654, this run's 400");
+  other = saved;
+  other.cameras[1].height = 512;
+  EXPECT_EQ(identityMismatch(saved, other),
+            "camera 1 differs in resolution: the map's 752x480, this run's 752x512");
+  other = saved;
+  other.cameras[0].distortion_model = DistortionModel::kRadialTangential;
+  other.cameras[0].distortion = {-0.28, 0.07, 0.0002, 1.8e-05};
+  EXPECT_EQ(identityMismatch(saved, other),
+            "camera 0 differs in distortion model: the map's none, this run's radial-tangential");
+  MapIdentity distorted = other;
+  other.cameras[0].distortion[2] = 0.0003;
+  EXPECT_EQ(identityMismatch(distorted, other),
+            "camera 0 differs in distortion p1: the map's 0.0002, this run's 0.0003");
+  other = saved;
+  other.cameras[1].T_b_c.t.x() = 0.12;
+  EXPECT_EQ(identityMismatch(saved, other),
+            "camera 1 differs in pose in the body (T_b_c) translation: the map's (0.11, 0, 0) m, "
+            "this run's (0.12, 0, 0) m");
+  other = saved;
+  other.cameras[0].T_b_c = SE3d(expSO3(Eigen::Vector3d(0, 0, 0.01)), Eigen::Vector3d::Zero());
+  EXPECT_EQ(identityMismatch(saved, other),
+            "camera 0 differs in pose in the body (T_b_c) rotation: this run's is turned 0.572958 "
+            "deg from the map's");
+  other = saved;
+  other.T_b_i->t.z() = 0.05;
+  EXPECT_EQ(identityMismatch(saved, other),
+            "the IMU differs in pose in the body (T_b_i) translation: the map's (0, 0, 0) m, this "
+            "run's (0, 0, 0.05) m");
   other = saved;
   other.sensor_mode = "stereo";
   EXPECT_NE(identityMismatch(saved, other).find("stereo-inertial mode"), std::string::npos);
