@@ -84,6 +84,22 @@ SE3d zUpWorldFromSource(MotionConvention convention) {
   return SE3d(R, Eigen::Vector3d::Zero());
 }
 
+/// Why --start and --duration do not fit a trajectory of `covered_s` seconds, and what range does.
+std::string windowMisfit(double covered_s, const MotionSourceOptions& options) {
+  const std::string asked = fmt::format(
+      "the trajectory covers {:.2f} s; --start {:.2f} s + --duration {:.2f} s ends {:.2f} s "
+      "after its end",
+      covered_s, options.start_s, options.duration_s,
+      options.start_s + options.duration_s - covered_s);
+  if (options.start_s >= covered_s) {
+    return fmt::format("{}: --start must be below {:.2f} s", asked, covered_s);
+  }
+  return fmt::format(
+      "{}: --start + --duration must be at most {:.2f} s (with --start {:.2f} s, --duration up "
+      "to {:.2f} s)",
+      asked, covered_s, options.start_s, covered_s - options.start_s);
+}
+
 Trajectory proceduralSource(double extent_m, double duration_s) {
   LissajousOptions options;
   options.duration_s = duration_s + 2.0 * nsToSeconds(kMarginNs);
@@ -130,20 +146,20 @@ MotionWindow loadMotion(const MotionSourceOptions& options, double procedural_ex
   if (!(options.duration_s > 0.0)) throw OptionError("duration", "must be > 0");
   if (options.start_s < 0.0) throw OptionError("start", "must be >= 0");
   MotionWindow result;
-  const Trajectory source = options.trajectory_file
-                                ? io::readTrajectory(*options.trajectory_file, options.read)
-                                : proceduralSource(procedural_extent_m, options.duration_s);
+  // The procedural flight goes on for ever: it is generated as far as the window needs.
+  const Trajectory source =
+      options.trajectory_file
+          ? io::readTrajectory(*options.trajectory_file, options.read)
+          : proceduralSource(procedural_extent_m, options.start_s + options.duration_s);
   result.convention = resolveConvention(options, source);
   const TimeNs source_begin = source.front().t_ns + (options.trajectory_file ? 0 : kMarginNs);
+  result.start_origin_ns = source_begin;
   result.window.begin = source_begin + secondsToNs(options.start_s);
   result.window.end = result.window.begin + secondsToNs(options.duration_s);
   if (result.window.end > source.back().t_ns) {
     const fs::path name = options.trajectory_file ? *options.trajectory_file : "procedural";
     throw InputError(InputLocation(name),
-                     fmt::format("the trajectory covers {:.1f} s; start {:.1f} s + duration {:.1f} "
-                                 "s does not fit (shorten --duration or --start)",
-                                 nsToSeconds(source.back().t_ns - source.front().t_ns),
-                                 options.start_s, options.duration_s));
+                     windowMisfit(nsToSeconds(source.back().t_ns - source_begin), options));
   }
   const SE3d T_w_src0 = zUpWorldFromSource(result.convention);
   const SE3d T_src_b = bodyInTrackedFrame(result.convention, options.mount_height_m);

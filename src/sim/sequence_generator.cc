@@ -730,9 +730,11 @@ CameraPath cameraPathOf(const Se3Spline& spline, const MotionWindow& motion,
 }
 
 /// This sequence's world: its own, or the static world of options.world_of with its agents; the
-/// source its simulation.yaml records.
+/// source its simulation.yaml records. `start_origin_ns`: the camera path's time --start counts
+/// from (MotionWindow::start_origin_ns), for the errors of a reused world.
 std::pair<World, WorldSource> buildSequenceWorld(const SimulationOptions& options,
-                                                 const CameraPath& camera_path) {
+                                                 const CameraPath& camera_path,
+                                                 TimeNs start_origin_ns) {
   WorldOptions world_options = options.world;
   world_options.seed = options.seed;
   if (!options.world_of) {
@@ -767,9 +769,14 @@ std::pair<World, WorldSource> buildSequenceWorld(const SimulationOptions& option
   world_options.background_contrast = from.background_contrast;
   world_options.texture_variety = from.texture_variety;
   world_options.photos = static_options.photos;
+  const ReusedWorldHint hint{
+      start_origin_ns,
+      fmt::format("the part of the trajectory its world was built around fits: --start {:g} "
+                  "--duration {:g} (that sequence's own)",
+                  from.motion.start_s, from.motion.duration_s)};
   World world =
       buildWorldIn(static_options, cameraPathOf(source_spline, source_motion, options.rig),
-                   world_options, camera_path);
+                   world_options, camera_path, hint);
   const std::uint64_t fingerprint = staticWorldFingerprint(world);
   if (fingerprint != from.fingerprint) {
     throw InputError(InputLocation(from.sequence / "simulation.yaml", 0,
@@ -863,7 +870,8 @@ SimulationSummary generateSequence(const SimulationOptions& options,
   prepareOutputFolder(options.output_dir, options.overwrite);
 
   const CameraPath camera_path = cameraPathOf(spline, motion, options.rig);
-  const auto [world, world_source] = buildSequenceWorld(options, camera_path);
+  const auto [world, world_source] =
+      buildSequenceWorld(options, camera_path, motion.start_origin_ns);
 
   ImuNoiseOptions imu_options = options.imu;
   imu_options.noise = options.noise;

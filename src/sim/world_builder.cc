@@ -223,7 +223,7 @@ class WorldBuilder {
   /// Continues on the static world `other` built (its scene, ground, region and footprints); the
   /// agents then follow this builder's path and seed. Throws OptionError when this path leaves
   /// that world or passes within 0.5 m of one of its blocks.
-  void adoptStaticWorld(WorldBuilder&& other) {
+  void adoptStaticWorld(WorldBuilder&& other, const ReusedWorldHint& hint) {
     world_ = std::move(other.world_);
     region_min_ = other.region_min_;
     region_max_ = other.region_max_;
@@ -232,11 +232,13 @@ class WorldBuilder {
       const Eigen::Vector2d xy = samples_.position[i].head<2>();
       const bool blocked = overlapsFootprints(xy, Eigen::Vector2d::Constant(0.5), 0.0);
       if (insideRegion(xy, 0.5) && !blocked) continue;
-      throw OptionError("world-of",
-                        fmt::format("the camera path {} the reused world at t = {:.2f} s (x {:.1f} "
-                                    "m, y {:.1f} m): choose a part of the trajectory within it",
-                                    blocked ? "runs into a block of" : "leaves",
-                                    nsToSeconds(samples_.t_ns[i]), xy.x(), xy.y()));
+      throw OptionError(
+          "world-of",
+          fmt::format("the camera path {} the reused world {:.2f} s into the trajectory (x {:.1f} "
+                      "m, y {:.1f} m): choose a part of the trajectory within it{}",
+                      blocked ? "runs into a block of" : "leaves",
+                      nsToSeconds(samples_.t_ns[i] - hint.origin_ns), xy.x(), xy.y(),
+                      hint.fits.empty() ? "" : "; " + hint.fits));
     }
   }
 
@@ -953,13 +955,14 @@ void WorldOptions::validate() const {
 }
 
 World buildWorldIn(const WorldOptions& static_options, const CameraPath& static_path,
-                   const WorldOptions& options, const CameraPath& camera_path) {
+                   const WorldOptions& options, const CameraPath& camera_path,
+                   const ReusedWorldHint& hint) {
   static_options.validate();
   options.validate();
   WorldBuilder static_builder(static_options, static_path);
   static_builder.buildStatic();
   WorldBuilder builder(options, camera_path);
-  builder.adoptStaticWorld(std::move(static_builder));
+  builder.adoptStaticWorld(std::move(static_builder), hint);
   return builder.buildAgents();
 }
 

@@ -12,6 +12,9 @@
 #                        --quiet leaves warnings and the summary.
 #   eval_plot_span       eval --plot shows the ground truth of the estimate's time span by default
 #                        (--plot-span all: all of it).
+#   world_of_range       simulate --world-of with --start + --duration inside the first sequence's
+#                        part fits; a part outside its world, or beyond a trajectory file's end,
+#                        is refused with the range that fits.
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -214,6 +217,25 @@ case_eval_plot_span() {
   echo "--plot-span all: ground truth ${gt_px} px wide, estimate ${est_px} px"
   python3 -c "import sys; sys.exit(0 if $est_px < 0.6 * $gt_px else 1)" ||
     fail "--plot-span all does not show the whole ground truth"
+}
+
+case_world_of_range() {
+  "$superdyna" simulate --out "$work/a" --scene street --dynamic none --duration 5 --seed 5 \
+    --landmarks 0 >/dev/null 2>&1 || fail "simulate a failed"
+  # Inside the first sequence's 5 s: fits (it was refused as "covers 4.5 s").
+  "$superdyna" simulate --out "$work/b" --world-of "$work/a" --dynamic none --start 2 \
+    --duration 2.5 --seed 6 --landmarks 0 >"$work/b.log" 2>&1 || { cat "$work/b.log"; fail "refused"; }
+  [ "$(grep -vc '^#' "$work/b/mav0/cam0/data.csv")" -eq 51 ] || fail "expected 51 frames in 2.5 s"
+  # Far along the flight, outside the first sequence's world: refused, naming the part that fits.
+  expect_exit 2 "choose a part of the trajectory within it; the part of the trajectory its world was built around fits: --start 0 --duration 5" \
+    "$superdyna" simulate --out "$work/c" --world-of "$work/a" --dynamic none --start 40 \
+    --duration 2 --landmarks 0
+  # A trajectory file: the longest duration for the start given.
+  "$superdyna" demo --out "$work/demo" --duration 6 >/dev/null 2>&1
+  expect_exit 2 "--start + --duration must be at most 6.00 s (with --start 2.00 s, --duration up to 4.00 s)" \
+    "$superdyna" simulate --out "$work/d" --trajectory "$work/demo/groundtruth.txt" --start 2 \
+    --duration 5
+  cat "$work/expect.log"
 }
 
 "case_$case"

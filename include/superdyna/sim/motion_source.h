@@ -46,8 +46,9 @@ struct MotionSourceOptions {
 /// Procedural motion is scaled to the scene's size by `procedural_extent_m` (half-width of the
 /// flight along x). Throws InputError when the file is shorter than the requested window.
 struct MotionWindow {
-  Trajectory body_poses;                                  ///< T_w_b samples.
-  TimeRange window;                                       ///< The requested sequence time range.
+  Trajectory body_poses;       ///< T_w_b samples.
+  TimeRange window;            ///< The requested sequence time range.
+  TimeNs start_origin_ns = 0;  ///< The trajectory time that --start (start_s) counts from.
   MotionConvention convention = MotionConvention::kBody;  ///< As resolved from kAuto.
 };
 

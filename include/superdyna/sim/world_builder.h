@@ -110,12 +110,22 @@ struct World {
 /// Deterministic for given options and camera path.
 World buildWorld(const WorldOptions& options, const CameraPath& camera_path);
 
+/// What buildWorldIn's error says about the times of a reused world: `origin_ns` is the camera
+/// path's time that --start counts from, `fits` a part of the trajectory that fits (the one the
+/// reused world was built around, as --start and --duration).
+struct ReusedWorldHint {
+  TimeNs origin_ns = 0;
+  std::string fits;
+};
+
 /// A second world in the static scene of another (simulate --world-of): the static world (ground,
 /// room or buildings, clutter) is the one buildWorld(static_options, static_path) builds; the
 /// agents are drawn around `camera_path` from options.seed (options.scene must equal
-/// static_options.scene). OptionError when camera_path leaves that world or runs into a block.
+/// static_options.scene). OptionError when camera_path leaves that world or runs into a block,
+/// naming the time (since hint.origin_ns) and the part that fits (hint.fits).
 World buildWorldIn(const WorldOptions& static_options, const CameraPath& static_path,
-                   const WorldOptions& options, const CameraPath& camera_path);
+                   const WorldOptions& options, const CameraPath& camera_path,
+                   const ReusedWorldHint& hint = {});
 
 /// A hash of the static world (instance 0's quads, the pixels of their textures, the ground
 /// height): equal for equal static worlds.
