@@ -263,17 +263,32 @@ class EvalCommand : public Command {
                      : "");
   }
 
+  /// An alignment whose rotation the path does not determine (its ATE rot means nothing).
+  static void warnIfRotationUndetermined(const eval::EvaluationResult& result,
+                                         const std::string& name) {
+    if (!result.alignmentRotationUndetermined()) return;
+    spdlog::warn(
+        "{}: the path does not determine the alignment's rotation: over {} pairs the ATE "
+        "({:.4f} m) is not small against the path's spread across its main direction, so the "
+        "rotation is uncertain by about {:.0f} deg; ATE rot and the aligned orientations are "
+        "not meaningful (evaluate a longer, less straight stretch)",
+        name, result.pairs, result.ate_trans.rmse, result.alignment_rotation_uncertainty_deg);
+  }
+
   void reportSingle(const Trajectory& gt, const eval::EvaluationResult& result,
                     const std::string& name) const {
     warnIfRpeMissing(result, name);
+    warnIfRotationUndetermined(result, name);
     fmt::print("{}", eval::formatTable(result));
     if (args_.json) writeJson(*args_.json, eval::toJson(result));
     if (args_.plot) writePlot(gt, {&result}, {eval::alignedEstimateSeries(result, name)});
   }
 
   void reportMultiple(const Trajectory& gt, const eval::MultiRunResult& runs) const {
-    for (const eval::NamedRun& run : runs.runs)
+    for (const eval::NamedRun& run : runs.runs) {
       warnIfRpeMissing(run.result, run.name);
+      warnIfRotationUndetermined(run.result, run.name);
+    }
     fmt::print("{}", eval::formatTable(runs));
     if (args_.json) writeJson(*args_.json, eval::toJson(runs));
     if (args_.plot) {

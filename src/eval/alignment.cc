@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <numbers>
 
 #include "superdyna/core/error.h"
 
@@ -116,6 +117,14 @@ Sim3d umeyamaAlignment(const Eigen::Matrix3Xd& src, const Eigen::Matrix3Xd& dst,
   }
   result.t = mean_dst - result.s * result.R * mean_src;
   return result;
+}
+
+double rotationUncertaintyDeg(const Eigen::Matrix3Xd& positions, double residual_rms_m) {
+  if (positions.cols() == 0) return 90.0;
+  const Eigen::Matrix3Xd centred = positions.colwise() - positions.rowwise().mean();
+  const Eigen::Vector3d extent = principalExtents(centred);
+  const double lever_m = std::hypot(extent(1), extent(2));
+  return std::atan2(residual_rms_m, lever_m) * 180.0 / std::numbers::pi;
 }
 
 Sim3d alignPositions(const Eigen::Matrix3Xd& est_positions, const Eigen::Matrix3Xd& gt_positions,

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <string>
 
 #include "superdyna/core/error.h"
@@ -40,6 +41,23 @@ Eigen::Matrix3Xd positionsOf(const std::vector<SE3d>& poses) {
     positions.col(static_cast<Eigen::Index>(i)) = poses[i].t;
   }
   return positions;
+}
+
+/// The uncertainty of an estimated rotation (EvaluationResult::alignment_rotation_uncertainty_deg)
+/// over the pairs it was estimated on.
+double alignmentRotationUncertaintyDeg(const Eigen::Matrix3Xd& gt_positions,
+                                       const std::vector<double>& trans_errors_m,
+                                       const EvaluationOptions& options) {
+  if (options.given_alignment || options.align == AlignmentMode::kNone) return 0.0;
+  const Eigen::Index used = options.align_first_n > 0 && options.align_first_n < gt_positions.cols()
+                                ? options.align_first_n
+                                : gt_positions.cols();
+  double squared = 0.0;
+  for (Eigen::Index i = 0; i < used; ++i)
+    squared +=
+        trans_errors_m[static_cast<std::size_t>(i)] * trans_errors_m[static_cast<std::size_t>(i)];
+  const double rms = std::sqrt(squared / static_cast<double>(used));
+  return rotationUncertaintyDeg(gt_positions.leftCols(used), rms);
 }
 
 std::vector<PoseError> perPoseErrors(const AssociatedPoses& matched, const Sim3d& alignment,
@@ -90,6 +108,8 @@ EvaluationResult evaluate(const Trajectory& gt, const Trajectory& est,
   const AteResult ate = computeAte(matched.gt, matched.est, result.alignment);
   result.ate_trans = ate.trans;
   result.ate_rot = ate.rot;
+  result.alignment_rotation_uncertainty_deg =
+      alignmentRotationUncertaintyDeg(positionsOf(matched.gt), ate.trans_errors_m, options);
 
   // RPE is invariant to a rigid alignment, but a scale estimated by Sim(3) must be applied.
   const double rpe_scale = options.align == AlignmentMode::kSim3 ? result.alignment.s : 1.0;

@@ -24,7 +24,9 @@ nlohmann::json alignmentJson(const EvaluationResult& result) {
           {"R", rows},
           {"t", {t.x(), t.y(), t.z()}},
           {"s", result.alignment.s},
-          {"first_n", result.align_first_n}};
+          {"first_n", result.align_first_n},
+          {"rotation_uncertainty_deg", result.alignment_rotation_uncertainty_deg},
+          {"rotation_determined", !result.alignmentRotationUndetermined()}};
 }
 
 }  // namespace

@@ -50,7 +50,15 @@ std::string alignmentDescription(const EvaluationResult& result) {
       result.align_first_n > 0 && result.align_first_n < static_cast<int>(result.pairs)
           ? fmt::format("first {} pairs", result.align_first_n)
           : std::string("all pairs");
-  return fmt::format("{} over {}, scale {:.6f}", toString(result.align), over, result.scale());
+  const std::string rotation =
+      result.alignmentRotationUndetermined()
+          ? fmt::format(
+                "; rotation NOT determined by this path (uncertain by about {:.0f} deg): "
+                "ATE rot is not meaningful",
+                result.alignment_rotation_uncertainty_deg)
+          : std::string();
+  return fmt::format("{} over {}, scale {:.6f}{}", toString(result.align), over, result.scale(),
+                     rotation);
 }
 
 /// "0.012345 ± 0.000123", or "0.012345 ± n/a" when the interval is undefined (one run), or "n/a"

@@ -15,6 +15,10 @@
 #   world_of_range       simulate --world-of with --start + --duration inside the first sequence's
 #                        part fits; a part outside its world, or beyond a trajectory file's end,
 #                        is refused with the range that fits.
+#   eval_undetermined_rotation
+#                        an alignment whose rotation a path of a few centimetres does not
+#                        determine is flagged in the table, the JSON and a warning; a real flight
+#                        is not.
 # Usage: first_hour_cli_test.sh SUPERDYNA CASE
 set -euo pipefail
 superdyna=$1 case=$2
@@ -236,6 +240,45 @@ case_world_of_range() {
     "$superdyna" simulate --out "$work/d" --trajectory "$work/demo/groundtruth.txt" --start 2 \
     --duration 5
   cat "$work/expect.log"
+}
+
+case_eval_undetermined_rotation() {
+  # A 95-pose hover over 2 cm with 3 mm of estimate noise.
+  python3 - "$work/gt.txt" "$work/est.txt" <<'PY'
+import math, random, sys
+random.seed(3)
+with open(sys.argv[1], "w") as gt, open(sys.argv[2], "w") as est:
+    for i in range(95):
+        p = (0.02 * math.sin(0.05 * i), 0.002 * math.cos(0.3 * i), 0.001 * math.sin(0.2 * i))
+        e = [random.gauss(0.0, 0.003) for _ in range(3)]
+        gt.write("%.3f %.9f %.9f %.9f 0 0 0 1\n" % (0.05 * i, *p))
+        est.write("%.3f %.9f %.9f %.9f 0 0 0 1\n" % (0.05 * i, *(a + b for a, b in zip(p, e))))
+PY
+  "$superdyna" eval --gt "$work/gt.txt" --est "$work/est.txt" --rpe-delta 0.005 \
+    --json "$work/hover.json" >"$work/hover.log" 2>&1
+  cat "$work/hover.log"
+  grep -q '^Alignment: .*rotation NOT determined by this path (uncertain by about [0-9]* deg)' \
+    "$work/hover.log" || fail "the table does not flag the rotation"
+  grep -q 'the path does not determine the alignment.s rotation' "$work/hover.log" ||
+    fail "no warning"
+  python3 - "$work/hover.json" <<'PY'
+import json, sys
+alignment = json.load(open(sys.argv[1]))["alignment"]
+assert alignment["rotation_determined"] is False, alignment
+assert alignment["rotation_uncertainty_deg"] > 30, alignment
+PY
+  "$superdyna" demo --out "$work/demo" >/dev/null 2>&1
+  "$superdyna" eval --gt "$work/demo/groundtruth.txt" --est "$work/demo/estimate.txt" \
+    --json "$work/flight.json" >"$work/flight.log" 2>&1
+  if grep -q 'NOT determined\|does not determine' "$work/flight.log"; then
+    cat "$work/flight.log"
+    fail "a real flight was flagged"
+  fi
+  python3 - "$work/flight.json" <<'PY'
+import json, sys
+alignment = json.load(open(sys.argv[1]))["alignment"]
+assert alignment["rotation_determined"] is True and alignment["rotation_uncertainty_deg"] < 5, alignment
+PY
 }
 
 "case_$case"

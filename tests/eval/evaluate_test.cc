@@ -54,6 +54,41 @@ TEST(EvaluateTest, APathShorterThanTheRpeDeltaHasAnAteWhenRpeIsOptional) {
   EXPECT_NE(result.rpe_missing.find("1 m apart"), std::string::npos) << result.rpe_missing;
 }
 
+TEST(EvaluateTest, AnAlignmentRotationThePathDoesNotDetermineIsFlagged) {
+  // A hover over a few centimetres with 3 mm of estimate noise: the rotation the alignment fits is
+  // decided by the noise.
+  Trajectory gt, est;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  for (int i = 0; i < 95; ++i) {
+    const Eigen::Vector3d p(0.02 * std::sin(0.05 * i), 0.002 * std::cos(0.3 * i),
+                            0.001 * std::sin(0.2 * i));
+    gt.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(), p)});
+    const Eigen::Vector3d e(noise(rng), noise(rng), noise(rng));
+    est.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(), p + e)});
+  }
+  EvaluationOptions options;
+  options.require_rpe = false;
+  const EvaluationResult hover = evaluate(gt, est, options);
+  EXPECT_TRUE(hover.alignmentRotationUndetermined());
+  EXPECT_GT(hover.alignment_rotation_uncertainty_deg, 30.0);
+  // A 5 m circle with the same noise determines it to a fraction of a degree.
+  Trajectory circle_gt, circle_est;
+  for (int i = 0; i < 200; ++i) {
+    const double a = 0.0314 * i;
+    const Eigen::Vector3d p(5.0 * std::cos(a), 5.0 * std::sin(a), 0.3 * std::sin(3.0 * a));
+    circle_gt.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(), p)});
+    const Eigen::Vector3d e(noise(rng), noise(rng), noise(rng));
+    circle_est.push_back({i * 50 * kNsPerMillisecond, SE3d(Eigen::Quaterniond::Identity(), p + e)});
+  }
+  const EvaluationResult circle = evaluate(circle_gt, circle_est, options);
+  EXPECT_FALSE(circle.alignmentRotationUndetermined());
+  EXPECT_LT(circle.alignment_rotation_uncertainty_deg, 0.2);
+  // Nothing is estimated without an alignment or with a given one.
+  options.align = AlignmentMode::kNone;
+  EXPECT_EQ(evaluate(gt, est, options).alignment_rotation_uncertainty_deg, 0.0);
+}
+
 TEST(EvaluateTest, Sim3RecoversScaleAndRpeUsesIt) {
   SUPERDYNA_REQUIRE_SHARED(file, testdata::kMh01);
   const Trajectory gt = testdata::readSubsampled(file, 10);

@@ -28,6 +28,13 @@ std::string toString(AlignmentMode mode);
 /// points on one line (the rotation about that line is then undetermined).
 Sim3d umeyamaAlignment(const Eigen::Matrix3Xd& src, const Eigen::Matrix3Xd& dst, bool with_scale);
 
+/// How far (degrees) an alignment's rotation fitted to `positions` (metres, one per column) is
+/// uncertain when the fit leaves `residual_rms_m` of error: the angle that residual subtends at the
+/// points' lever arm about their worst-determined axis, the principal axis of largest extent
+/// (rotating about it moves them only by their spread across it: sqrt(e1^2 + e2^2) for principal
+/// standard deviations e0 >= e1 >= e2). 90 for coincident points.
+double rotationUncertaintyDeg(const Eigen::Matrix3Xd& positions, double residual_rms_m);
+
 /// Aligns estimate positions to ground-truth positions (one column per associated pose) with
 /// `mode`, using only the first `first_n` pairs when 0 < first_n < count (first_n <= 0: all).
 /// The result maps the estimate frame into the ground-truth frame: p_gt ~ T * p_est.

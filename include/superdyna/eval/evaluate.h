@@ -15,6 +15,10 @@
 
 namespace superdyna::eval {
 
+/// An estimated alignment whose rotation is uncertain by more than this (degrees,
+/// eval::rotationUncertaintyDeg) is not determined by the path: its rotation ATE means nothing.
+constexpr double kUndeterminedRotationDeg = 10.0;
+
 struct EvaluationOptions {
   AlignmentMode align = AlignmentMode::kSE3;
   /// Align with only the first N associated poses (N <= 0: all). Errors use every pose.
@@ -52,6 +56,16 @@ struct EvaluationResult {
   Sim3d alignment;               ///< Maps the estimate frame into the ground-truth frame.
   bool alignment_given = false;  ///< EvaluationOptions::given_alignment, not estimated.
   double scale() const { return alignment.s; }
+  /// How far the estimated alignment's rotation is uncertain [deg] (rotationUncertaintyDeg of the
+  /// aligned ground-truth positions and the ATE RMSE over them); 0 when no rotation was estimated
+  /// (align none, or a given alignment).
+  double alignment_rotation_uncertainty_deg = 0.0;
+  /// The path does not determine the estimated alignment's rotation (a path of a few centimetres,
+  /// or a nearly straight line, against errors of millimetres): ATE rot and the aligned
+  /// orientations are not meaningful.
+  bool alignmentRotationUndetermined() const {
+    return alignment_rotation_uncertainty_deg > kUndeterminedRotationDeg;
+  }
 
   ErrorStatistics ate_trans;  ///< [m]
   ErrorStatistics ate_rot;    ///< [deg]
