@@ -136,8 +136,9 @@ void printSegmentation(const system::TimingSummary& t) {
 /// Writes every `every`-th frame's overlay (system::FrameOverlays) into `dir` as a PNG file.
 class OverlayWriter {
  public:
-  OverlayWriter(fs::path dir, int every, bool moving_objects)
-      : dir_(std::move(dir)), overlays_(every, moving_objects) {
+  OverlayWriter(fs::path dir, int every, bool moving_objects,
+                const dynamic::MovingObjectOptions& dynamic)
+      : dir_(std::move(dir)), overlays_(every, moving_objects, dynamic) {
     fs::create_directories(dir_);
   }
 
@@ -586,8 +587,10 @@ class RunCommand : public Command {
         ->check(CLI::PositiveNumber);
     sub_->add_option("--overlay", overlay_dir_,
                      "Write overlay PNGs into this folder: left image, instance masks, keypoints "
-                     "coloured by class; with the moving-object test on, only the moving "
-                     "objects' masks and the keypoints kept (green) or dropped (red)");
+                     "coloured by class; with the moving-object test on, every object it decided "
+                     "on (moving: filled mask, red outline; static: green outline; unverified: "
+                     "dashed yellow outline with the reason), the keypoints kept (green) or "
+                     "dropped (red) and a legend");
     sub_->add_option("--overlay-every", overlay_every_, "Overlay every N-th frame")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
@@ -872,7 +875,8 @@ class RunCommand : public Command {
       refuseOutputInsideDataset(*overlay_dir_, "--overlay");
       overlay.emplace(*overlay_dir_, overlay_every_,
                       options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
-                          options.tracker.dynamic.geometric);
+                          options.tracker.dynamic.geometric,
+                      options.tracker.dynamic);
       slam.setFrontEndCallback(
           [&overlay](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
             overlay->remember(bundle, frame);

@@ -277,7 +277,8 @@ int runNode(int argc, char** argv) {
   system::System slam(options, rig.camera0, rig.camera1, rig.imu, std::move(segmenter));
   system::FrameOverlays overlays(settings.overlay_every,
                                  options.tracker.dynamic.mode != dynamic::DynamicMode::kOff ||
-                                     options.tracker.dynamic.geometric);
+                                     options.tracker.dynamic.geometric,
+                                 options.tracker.dynamic);
   slam.setFrontEndCallback([&](const sensors::FrameBundle& bundle, const tracking::Frame& frame) {
     if (ros.overlayWanted()) overlays.remember(bundle, frame);  // drawn only when subscribed
   });
