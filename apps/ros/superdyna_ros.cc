@@ -2,7 +2,7 @@
 // camera images and the IMU, assembles frames as the dataset readers serve them
 // (io::LiveFrameAssembler), runs them through system::System with the same YAML options file, and
 // publishes the body's odometry, path and tf, the map points and an overlay of the keypoints by
-// class (dropped ones red). Parameters (private, ~name) are listed in README "ROS" and in
+// class (dropped ones red). Parameters (private, ~name) are listed in docs/guide/ros-node.md and in
 // apps/ros/launch/superdyna.launch. On SIGINT the node finishes local mapping, writes the
 // trajectory when ~output is set, prints what it dropped, and exits with 0.
 

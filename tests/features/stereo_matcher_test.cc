@@ -807,8 +807,8 @@ sim::SimulationOptions staticSceneOptions(const fs::path& out, const fs::path& t
 TEST(DrivingStereo, DisparitiesAreUnbiasedAtStreetDepths) {
   // A car at 14 m/s (KITTI 06 motion) sees its points at 5-45 m, where a bias of 0.05 px is 1-5 %
   // of the depth. Visual stereo on this motion came out 1.5 % short; the stereo depths are not
-  // why (median +0.001 to +0.016 px); point fusion without a depth check was (README, "Point
-  // fusion's stereo check").
+  // why (median +0.001 to +0.016 px); point fusion without a depth check was
+  // (docs/results/backbone.md, "Point fusion's stereo check").
   SUPERDYNA_REQUIRE_SHARED(poses, "data/trajectories/kitti/06.txt");
   SUPERDYNA_REQUIRE_SHARED(times, "data/trajectories/kitti/06_times.txt");
   const ::superdyna::test::ScratchDir dir("features_driving_stereo");

@@ -39,7 +39,7 @@ TEST(YoloSegmenter, FindsTheParkedCarsOfTheKittiExcerpt) {
   ASSERT_EQ(segmenter.labels().size(), 80u);
   EXPECT_EQ(segmenter.labels()[2], "car");
   // At 320x320 a 1226x370 frame shrinks to 320x97: the near cars are found, the far parked ones
-  // need a larger input (scripts/resize_yolo_seg_onnx.py, README "Instance segmentation").
+  // need a larger input (scripts/resize_yolo_seg_onnx.py, docs/concepts/segmentation.md).
   const std::vector<std::pair<const char*, int>> frames = {
       {"000000.png", 1}, {"000008.png", 3}, {"000025.png", 1}};
   for (const auto& [frame, min_vehicles] : frames) {

@@ -163,7 +163,8 @@ TEST(SweepSpec, TheBenchSpecsLoadAndPlanTheirCells) {
     const SweepSpec spec = loadSweepSpec(entry.path());
     cells[spec.name] = planSweep(spec, "/tmp/unused", "superdyna").cells.size();
   }
-  // The README's backbone table: 17 cells; the ablation: 2 sequences x 7 configs x 5 runs.
+  // The backbone table (docs/results/backbone.md): 17 cells; the ablation: 2 sequences x 7
+  // configs x 5 runs.
   EXPECT_EQ(cells["backbone"], 17u);
   EXPECT_EQ(cells["dynamic-ablation"], 70u);
   EXPECT_EQ(cells["pipeline-speed"], 4u);

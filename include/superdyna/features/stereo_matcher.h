@@ -63,7 +63,7 @@ struct StereoMatchOptions {
   /// matches more than 2 px off, XFeat 21 -> 6.6 %, SuperPoint 3.8 -> 1.5 %, ALIKE-t 2.6 -> 1.0 %,
   /// ORB 3.3 -> 1.6 %, the good ones 98-100 % kept. On in the XFeat configs only: with it ORB's
   /// stereo-inertial KITTI 00 / 06 motion runs came out at 0.32 / 1.30 m against 0.15 / 0.43 m
-  /// (README "Running SLAM").
+  /// (docs/results/backbone.md).
   double check_search_px = 0.0;
   double check_ratio = 1.0;
 

@@ -8,7 +8,7 @@
 //
 // SuperPoint weights are not redistributable here: scripts/export_superpoint_onnx.py exports
 // MagicLeap's superpoint_v1.pth; scripts/make_superpoint_from_xfeat.py builds a model with the
-// same contract from xfeat.onnx (README, "Learned front end").
+// same contract from xfeat.onnx (docs/concepts/learned-features.md).
 //
 // extract() decodes as MagicLeap's SuperPointFrontend does (keypoint_decoding.h):
 //  1. gray / 255, padded (or resized) to multiples of 8 (or of the model's metadata

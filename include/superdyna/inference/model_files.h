@@ -1,6 +1,6 @@
 #pragma once
 // Where network files are found. Models are not part of the repository; users export or download
-// them (README, "Learned front end") and put them in one of the searched folders.
+// them (docs/concepts/learned-features.md, "Models") and put them in one of the searched folders.
 
 #include <filesystem>
 #include <string>

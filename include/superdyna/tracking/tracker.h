@@ -106,7 +106,8 @@ struct TrackerOptions {
   /// Monocular with IMU, after the inertial initialisation: weak tracking (fewer than
   /// keyframe_weak_inliers inliers) overrides imu_min_keyframe_interval_s, as ORB-SLAM3 inserts a
   /// mono-inertial keyframe whenever fewer than 75 points are tracked. Without it a parking lot
-  /// whose movers were removed lost track for good 0.2 s after a keyframe (README).
+  /// whose movers were removed lost track for good 0.2 s after a keyframe
+  /// (docs/concepts/front-end.md).
   bool imu_weak_keyframes = true;
   /// After the inertial initialisation: prediction from the newest keyframe and its pose prior.
   InertialPriorOptions imu_prior;
