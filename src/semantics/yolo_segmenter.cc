@@ -42,8 +42,8 @@ inference::OnnxModel loadModel(const YoloOptions& options) {
       options.model,
       "YOLOv8-seg models: export one with Ultralytics (yolo export "
       "model=yolov8n-seg.pt format=onnx), or use ../shared/models/"
-      "yolov8n-seg-int8.onnx beside the checkout (semantics.yolo_model; README, "
-      "'Instance segmentation').");
+      "yolov8n-seg-int8.onnx beside the checkout (semantics.yolo_model; docs/concepts/"
+      "segmentation.md).");
   return inference::OnnxModel(file, yoloSignature(), runtime);
 }
 
