@@ -50,9 +50,6 @@ int main(int argc, char** argv) {
                "superdyna"};
   app.set_version_flag("--version", std::string(SUPERDYNA_VERSION));
   app.require_subcommand(1);
-  app.footer(std::string("Run 'superdyna <command> --help' for the options of one command.\n") +
-             kExitCodes);
-
   std::vector<std::unique_ptr<superdyna::apps::Command>> commands;
   commands.push_back(superdyna::apps::makeEvalCommand(app));
   commands.push_back(superdyna::apps::makeEvalDynamicCommand(app));
@@ -67,6 +64,9 @@ int main(int argc, char** argv) {
     const std::string footer = sub->get_footer();
     sub->footer(footer.empty() ? std::string(kExitCodes) : footer + "\n" + kExitCodes);
   }
+  // After the subcommands: CLI11 hands a parent's footer on to subcommands made after it.
+  app.footer(std::string("Run 'superdyna <command> --help' for the options of one command.\n") +
+             kExitCodes);
 
   try {
     app.parse(argc, argv);

@@ -125,9 +125,13 @@ expect_exit() {  # code fragment command...
 case_exit_codes() {
   mkdir -p "$work/empty"
   echo "0 0 0 0 0 0 0 1" >"$work/x.tum"
-  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" run --help
-  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" eval --help
-  expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" --help
+  local command
+  for command in run eval info ""; do
+    # shellcheck disable=SC2086  # no argument for the top-level help
+    expect_exit 0 "Exit codes: 0 ok, 1 usage error" "$superdyna" $command --help
+    [ "$(grep -c "^Exit codes:" "$work/expect.log")" -eq 1 ] ||
+      { cat "$work/expect.log"; fail "'superdyna $command --help' lists the exit codes more than once"; }
+  done
   expect_exit 1 "--path: Path does not exist" \
     "$superdyna" run --path "$work/missing/" --output "$work/x.tum"
   expect_exit 1 "--output is required" "$superdyna" run --path "$work/empty"
