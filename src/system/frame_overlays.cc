@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <string>
@@ -123,12 +124,37 @@ void drawOutlines(cv::Mat& canvas, const std::vector<DrawnObject>& objects) {
   }
 }
 
-/// Every decided object's label (describeObject), over the keypoints.
+/// Where a label of `text_size` goes: at `wanted` or, when it would cover a label already placed,
+/// the nearest free line above it (away from its object) or else below, up to three lines away.
+cv::Point freeLabelOrigin(cv::Point wanted, cv::Size text_size, cv::Size canvas,
+                          const std::vector<cv::Rect>& placed) {
+  const int line = text_size.height + 6;
+  const auto covers = [&](cv::Point o) {
+    const cv::Rect rect(o.x, o.y - text_size.height, text_size.width, line);
+    return std::any_of(placed.begin(), placed.end(),
+                       [&](const cv::Rect& other) { return (rect & other).area() > 0; });
+  };
+  const cv::Point start(std::max(0, wanted.x), wanted.y);
+  for (const int lines : {0, -1, -2, -3, 1, 2, 3}) {
+    const cv::Point origin(start.x, start.y + lines * line);
+    if (origin.y < text_size.height || origin.y >= canvas.height) continue;
+    if (!covers(origin)) return origin;
+  }
+  return start;
+}
+
+/// Every decided object's label (describeObject), over the keypoints; labels that would overlap
+/// are moved apart.
 void drawLabels(cv::Mat& canvas, const std::vector<DrawnObject>& objects,
                 const dynamic::MovingObjectOptions& options) {
+  std::vector<cv::Rect> placed;
   for (const DrawnObject& d : objects) {
-    putLabel(canvas, describeObject(*d.object, options), d.label_origin,
-             decisionColour(d.object->decision));
+    const std::string text = describeObject(*d.object, options);
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, kFontScale, 3, &baseline);
+    const cv::Point origin = freeLabelOrigin(d.label_origin, size, canvas.size(), placed);
+    placed.emplace_back(origin.x, origin.y - size.height, size.width, size.height + 6);
+    putLabel(canvas, text, origin, decisionColour(d.object->decision));
   }
 }
 

@@ -122,5 +122,42 @@ TEST(FrameOverlays, LabelsNameTheDecisionAndWhyAnUnverifiedObjectWasDropped) {
             "unverified vehicle 3: none of its 4 pairs testable, kept");
 }
 
+/// Rows of `image` within `columns` holding a pixel of a green label's text (anti-aliased: mostly
+/// green), from `top` to `bottom`.
+int greenTextRows(const cv::Mat& image, cv::Range columns, int top, int bottom) {
+  int rows = 0;
+  for (int y = top; y < bottom; ++y) {
+    bool green = false;
+    for (int x = columns.start; x < columns.end && !green; ++x) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+      green = p[1] > 150 && p[0] < 80 && p[2] < 80;
+    }
+    rows += green ? 1 : 0;
+  }
+  return rows;
+}
+
+TEST(FrameOverlays, LabelsOfNeighbouringObjectsDoNotCoverEachOther) {
+  // Two static vehicles side by side at the same height: the second label, at the first one's
+  // line, would run into it ("static vehicle 11" is about 100 px wide); it goes a line higher.
+  Scene scene;
+  scene.bundle.masks->cam0.setTo(0);
+  scene.bundle.masks->cam0(cv::Rect(20, 120, 41, 41)).setTo(11);
+  scene.bundle.masks->cam0(cv::Rect(80, 120, 41, 41)).setTo(12);
+  scene.bundle.masks->class_of_instance = {{11, sensors::kInstanceClassVehicle},
+                                           {12, sensors::kInstanceClassVehicle}};
+  dynamic::ObjectDecision left{11, sensors::kInstanceClassVehicle};
+  left.decision = dynamic::ObjectState::kStatic;
+  dynamic::ObjectDecision right = left;
+  right.instance_id = 12;
+  scene.result.moving.objects = {left, right};
+  const cv::Mat image = drawn(scene);
+  ASSERT_FALSE(image.empty());
+  // The first label stands on the line just above the boxes (its baseline at y = 116), the second
+  // one a line (about 16 px) higher, clear of it.
+  EXPECT_GE(greenTextRows(image, cv::Range(20, 200), 104, 118), 5);
+  EXPECT_GE(greenTextRows(image, cv::Range(80, 200), 88, 102), 5);
+}
+
 }  // namespace
 }  // namespace superdyna::system
