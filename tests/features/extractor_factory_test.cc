@@ -52,7 +52,7 @@ TEST(ExtractorFactory, MissingModelSaysWhereItLookedAndHowToGetOne) {
   options.type = FeatureType::kSuperPoint;
   test::expectError([&] { makeExtractor(options); },
                     {"superpoint.onnx", "not found", empty.path().string(),
-                     inference::kModelDirVariable, "Learned front end"});
+                     inference::kModelDirVariable, "docs/concepts/learned-features.md"});
 }
 
 TEST(ExtractorFactory, BuildsXFeatFromTheSharedModel) {

@@ -72,7 +72,7 @@ TEST(ModelFiles, MissingModelListsWhereItLookedAndHowToGetOne) {
   test::ScopedEnv env(kModelDirVariable, dir.path().string());
   expectError([] { findModel("no_such_model.onnx"); },
               {"no_such_model.onnx", dir.path().string(), "models", "SUPERDYNA_MODEL_DIR",
-               "Learned front end"});
+               "docs/concepts/learned-features.md"});
   ASSERT_GE(modelSearchDirs().size(), 2u);
   EXPECT_EQ(modelSearchDirs()[0], dir.path());
 }
