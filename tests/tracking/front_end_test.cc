@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "superdyna/inference/model_files.h"
+#include "superdyna/io/dataset_source.h"
 #include "support/test_support.h"
 
 namespace superdyna::tracking {

@@ -29,7 +29,7 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/features/feature_set.h"
-#include "superdyna/io/calibration.h"
+#include "superdyna/sensors/calibration.h"
 
 namespace superdyna::features {
 

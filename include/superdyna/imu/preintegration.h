@@ -27,8 +27,8 @@
 
 #include "superdyna/core/error.h"
 #include "superdyna/core/time.h"
-#include "superdyna/io/calibration.h"
-#include "superdyna/io/euroc_dataset.h"
+#include "superdyna/sensors/calibration.h"
+#include "superdyna/sensors/measurements.h"
 
 namespace superdyna::imu {
 

@@ -8,8 +8,8 @@
 
 #include "superdyna/core/geometry.h"
 #include "superdyna/core/time.h"
-#include "superdyna/io/euroc_dataset.h"
 #include "superdyna/map/map_point.h"
+#include "superdyna/sensors/measurements.h"
 
 namespace superdyna::map {
 

@@ -32,8 +32,8 @@
 #include <string>
 #include <vector>
 
-#include "superdyna/io/calibration.h"
 #include "superdyna/map/map.h"
+#include "superdyna/sensors/calibration.h"
 
 namespace superdyna::map {
 

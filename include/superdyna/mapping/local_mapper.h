@@ -29,7 +29,6 @@
 #include "superdyna/core/camera_model.h"
 #include "superdyna/core/geometry.h"
 #include "superdyna/core/task_thread.h"
-#include "superdyna/io/calibration.h"
 #include "superdyna/map/map.h"
 #include "superdyna/mapping/bundle_adjustment.h"
 #include "superdyna/mapping/inertial_map_initializer.h"
@@ -38,6 +37,7 @@
 #include "superdyna/mapping/point_fusion.h"
 #include "superdyna/mapping/point_triangulator.h"
 #include "superdyna/optim/reprojection_factor.h"
+#include "superdyna/sensors/calibration.h"
 
 namespace superdyna::mapping {
 

@@ -10,7 +10,7 @@
 
 #include "superdyna/core/time.h"
 #include "superdyna/features/feature_set.h"
-#include "superdyna/io/dataset_source.h"
+#include "superdyna/sensors/measurements.h"
 
 namespace superdyna::tracking {
 

@@ -24,8 +24,9 @@
 #include "superdyna/core/task_thread.h"
 #include "superdyna/features/extractor_factory.h"
 #include "superdyna/features/stereo_matcher.h"
-#include "superdyna/io/calibration.h"
-#include "superdyna/io/dataset_source.h"
+#include "superdyna/sensors/calibration.h"
+#include "superdyna/sensors/frame_bundle.h"
+#include "superdyna/sensors/instance_masks.h"
 #include "superdyna/tracking/frame.h"
 
 namespace superdyna::tracking {

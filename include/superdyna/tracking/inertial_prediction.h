@@ -19,9 +19,9 @@
 
 #include "superdyna/core/geometry.h"
 #include "superdyna/imu/preintegration.h"
-#include "superdyna/io/euroc_dataset.h"
 #include "superdyna/map/keyframe.h"
 #include "superdyna/optim/pose_optimizer.h"
+#include "superdyna/sensors/measurements.h"
 
 namespace superdyna::tracking {
 
