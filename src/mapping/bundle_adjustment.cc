@@ -335,16 +335,18 @@ class Problem {
       const optim::ImuStateBlocks state_i = previous->second.state.blocks();
       const optim::ImuStateBlocks state_j = blocks.state.blocks();
       optim::addImuEdge(*problem_, *pre, state_i, state_j);
-      if (previous->second.fixed) holdInertialState(state_i);
+      if (previous->second.fixed) {
+        holdInertialState(state_i, pre->deltaTime() < window_.free_anchor_velocity_below_s);
+      }
       ++edges;
     }
     addBiasPrior();
     return edges;
   }
 
-  void holdInertialState(const optim::ImuStateBlocks& state) {
+  void holdInertialState(const optim::ImuStateBlocks& state, bool free_velocity) {
     problem_->SetParameterBlockConstant(state.pose);
-    problem_->SetParameterBlockConstant(state.velocity);
+    if (!free_velocity) problem_->SetParameterBlockConstant(state.velocity);
     problem_->SetParameterBlockConstant(state.bias_gyro);
     problem_->SetParameterBlockConstant(state.bias_acc);
   }

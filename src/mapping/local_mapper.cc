@@ -36,6 +36,9 @@ void LocalMapperOptions::validate() const {
   if (inertial_window_keyframes < 2) {
     throw OptionError("mapping.inertial_window_keyframes", "must be >= 2");
   }
+  if (!(inertial_free_anchor_velocity_below_s >= 0.0)) {
+    throw OptionError("mapping.inertial_free_anchor_velocity_below_s", "must be >= 0");
+  }
   if (inertial_fixed_covisible < 0) {
     throw OptionError("mapping.inertial_fixed_covisible", "must be >= 0");
   }
@@ -188,6 +191,7 @@ BundleAdjustmentResult LocalMapper::inertialBundleAdjust(map::Map& map, map::Key
   window.optimised.assign(chain.begin(), chain.end() - 1);
   window.fixed = {chain.back()};
   window.fixed_observers = options_.inertial_fixed_covisible;
+  window.free_anchor_velocity_below_s = options_.inertial_free_anchor_velocity_below_s;
   return bundleAdjust(map, window, cameras_, right_, settings(options_.inertial_iterations),
                       BundleAdjustmentImu{imu_->T_b_i, &*preintegrations_});
 }

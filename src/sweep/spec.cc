@@ -154,8 +154,8 @@ class SpecReader {
   ConfigSpec readConfig(const YAML::Node& node, std::size_t index) const {
     const std::string at = fmt::format("configs[{}]", index);
     checkKeys(node, at,
-              {"name", "mode", "config", "set", "args", "deterministic", "align", "sequences",
-               "command", "trajectory", "trajectory_format", "time_unit"});
+              {"name", "mode", "config", "set", "args", "deterministic", "runs", "align",
+               "sequences", "command", "trajectory", "trajectory_format", "time_unit"});
     ConfigSpec c;
     c.name = text(yaml_.child(node, "name", at + ".name"), at + ".name");
     if (node["mode"]) c.mode = oneOf(node["mode"], at + ".mode", kModes);
@@ -170,6 +170,7 @@ class SpecReader {
     if (node["args"]) c.args = texts(node["args"], at + ".args");
     if (node["deterministic"])
       c.deterministic = boolean(node["deterministic"], at + ".deterministic");
+    if (node["runs"]) c.runs = positiveInt(node["runs"], at + ".runs");
     if (node["align"]) c.align = oneOf(node["align"], at + ".align", {"none", "se3", "sim3"});
     if (node["sequences"]) c.sequences = texts(node["sequences"], at + ".sequences");
     if (node["command"]) c.command = text(node["command"], at + ".command");

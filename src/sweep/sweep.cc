@@ -280,7 +280,8 @@ SweepPlan planSweep(const SweepSpec& spec, const fs::path& out, const fs::path& 
   for (const SequenceSpec& s : spec.sequences) {
     for (const ConfigSpec& c : spec.configs) {
       if (!c.runsOn(s.name)) continue;
-      for (int run = 1; run <= spec.runs; ++run) {
+      const int runs = c.runs > 0 ? c.runs : spec.runs;
+      for (int run = 1; run <= runs; ++run) {
         plan.cells.push_back({s.name, c.name, run,
                               plan.out / "cells" / s.name / c.name / fmt::format("run-{}", run)});
       }

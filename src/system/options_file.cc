@@ -313,6 +313,7 @@ std::vector<Section> optionTable(SystemOptions& o) {
         {"inertial_window_keyframes", &o.mapping.inertial_window_keyframes},
         {"inertial_fixed_covisible", &o.mapping.inertial_fixed_covisible},
         {"inertial_iterations", &o.mapping.inertial_iterations},
+        {"inertial_free_anchor_velocity_below_s", &o.mapping.inertial_free_anchor_velocity_below_s},
         {"global_ba_iterations", &o.mapping.global_ba_iterations}}},
       {"semantics",
        {{"segmenter", &s.segmenter},

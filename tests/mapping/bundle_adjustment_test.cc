@@ -87,6 +87,44 @@ TEST(BundleAdjustmentTest, InertialLocalBaRemovesInjectedErrors) {
   EXPECT_EQ(scene.map->consistencyError(), "");
 }
 
+/// Keyframes 50 ms apart at their true states, except the window's anchor (the keyframe before
+/// it), whose velocity is 10 % short: a stale estimate of an earlier window. Returns the window's
+/// largest position error after the VI local BA.
+double positionErrorAfterStaleAnchorVelocity(bool free_anchor_velocity) {
+  constexpr std::size_t kWindow = 8;
+  test::SceneOptions options;
+  options.keyframes = 14;
+  options.spacing_s = 0.05;
+  test::MappingScene scene = test::makeMappingScene(options);
+  for (std::size_t k = 0; k < scene.ids.size(); ++k) {
+    const test::TruthState& truth = scene.truth[k];
+    scene.map->setKeyFrameInertialState(scene.ids[k], truth.v_w, truth.bias.bg, truth.bias.ba);
+  }
+  const std::size_t first = scene.ids.size() - kWindow;
+  const test::TruthState& anchor = scene.truth[first - 1];
+  scene.map->setKeyFrameInertialState(scene.ids[first - 1], 0.9 * anchor.v_w, anchor.bias.bg,
+                                      anchor.bias.ba);
+  BundleAdjustmentWindow window;
+  window.inertial = true;
+  window.free_anchor_velocity_below_s = free_anchor_velocity ? 0.2 : 0.0;
+  window.optimised.assign(scene.ids.begin() + static_cast<std::ptrdiff_t>(first), scene.ids.end());
+  window.fixed = {scene.ids[first - 1]};
+  KeyFramePreintegrations preintegrations(scene.noise);
+  BundleAdjustmentSettings settings;
+  settings.iterations = 20;
+  bundleAdjust(*scene.map, window, {scene.camera}, {}, settings,
+               BundleAdjustmentImu{SE3d(), &preintegrations});
+  EXPECT_EQ(scene.map->keyFrame(scene.ids[first - 1])->v_w, 0.9 * anchor.v_w);  // not written
+  return windowErrors(scene, first).position_m;
+}
+
+TEST(BundleAdjustmentTest, AStaleAnchorVelocityHeldMovesDenseKeyFramesAFreeOneDoesNot) {
+  const double held = positionErrorAfterStaleAnchorVelocity(false);
+  const double free = positionErrorAfterStaleAnchorVelocity(true);
+  EXPECT_GT(held, 0.01);    // 4.8 cm
+  EXPECT_LT(free, 0.0005);  // 3 um
+}
+
 TEST(BundleAdjustmentTest, VisualBaLeavesVelocitiesAlone) {
   constexpr std::size_t kWindow = 6;
   test::MappingScene scene = perturbedScene(kWindow);

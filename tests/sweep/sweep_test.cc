@@ -96,6 +96,9 @@ configs:
     mode: mono
     sequences: [other]
     deterministic: false
+  - name: once
+    mode: stereo
+    runs: 1
 tables:
   - {name: t10, metric: ate_mean_ci, rows: configs, configs: [mono, orb]}
 )");
@@ -114,7 +117,9 @@ tables:
   EXPECT_TRUE(spec.tables[0].rows_are_configs);
 
   const SweepPlan plan = planSweep(spec, dir / "out", "/usr/bin/superdyna");
-  EXPECT_EQ(plan.cells.size(), 3u * 2u + 3u);  // orb on both sequences, mono on one
+  // orb on both sequences, mono on one, `once` on both with its own single run
+  EXPECT_EQ(plan.cells.size(), 3u * 2u + 3u + 2u);
+  EXPECT_EQ(spec.config("once").runs, 1);
   EXPECT_EQ(plan.cells.front().dir, fs::absolute(dir / "out/cells/sim/orb/run-1"));
   EXPECT_EQ(plan.sequences[0].simulate.back(), fs::absolute(dir / "out/sequences/sim").string());
   const std::vector<std::string> command = cellCommand(spec, plan, plan.cells.front());
@@ -168,6 +173,10 @@ TEST(SweepSpec, TheBenchSpecsLoadAndPlanTheirCells) {
   EXPECT_EQ(cells["backbone"], 17u);
   EXPECT_EQ(cells["dynamic-ablation"], 70u);
   EXPECT_EQ(cells["pipeline-speed"], 4u);
+  // Issue 50's table: si-sg on 6 dynamic sequences and their 6 static worlds, si-off and
+  // si-semantic on the 6, ORB-SLAM3 stereo-inertial 3 runs on the 6, mono-inertial on the 3
+  // robot sequences (ours once, ORB-SLAM3 three times).
+  EXPECT_EQ(cells["dynamic-peers"], 12u + 6u + 6u + 18u + 3u + 9u);
 }
 
 TEST(SweepSpec, ExpandsVariablesWithDefaults) {

@@ -60,6 +60,13 @@ struct BundleAdjustmentWindow {
   int min_fixed = 0;
   /// Visual-inertial: needs `imu` in the context.
   bool inertial = false;
+  /// Visual-inertial: a fixed keyframe before an optimised one (the window's anchor) keeps its
+  /// pose and biases held, and its velocity too unless the preintegration to that keyframe spans
+  /// less than this [s] (0 = always held). Held, its velocity is an estimate from an earlier
+  /// window imposed as exact: with keyframes a frame or two apart the window is a fraction of a
+  /// second long, follows that velocity rather than its observations, and hands the error on
+  /// from window to window. Over longer gaps the held velocity is the better estimate.
+  double free_anchor_velocity_below_s = 0.0;
   /// Visual-inertial: zero-mean Gaussian prior on the biases of the oldest optimised keyframe,
   /// [rad/s] and [m/s^2] (the prior of the inertial initialisation, so that a full BA after it
   /// counts that information once); 0 = none.

@@ -14,10 +14,11 @@
 // refine_second_s old. From then on the local BA is visual-inertial (ORB-SLAM3): the newest
 // inertial_window_keyframes keyframes of the temporal chain are optimised (pose, velocity, biases)
 // with preintegration and bias random walk factors between consecutive ones; the keyframe before
-// them is fixed with its velocity and biases; up to inertial_fixed_covisible keyframes outside the
-// window that observe its points add their observations with fixed poses. Then: removal of outlier
-// observations, culling of recent map points that too few keyframes observe, and culling of
-// redundant keyframes (keyframe_culling.h).
+// them is fixed with its biases, and with its velocity unless it is less than
+// inertial_free_anchor_velocity_below_s before the window; up to
+// inertial_fixed_covisible keyframes outside the window that observe its points add their
+// observations with fixed poses. Then: removal of outlier observations, culling of recent map
+// points that too few keyframes observe, and culling of redundant keyframes (keyframe_culling.h).
 
 #include <Eigen/Core>
 #include <map>
@@ -75,6 +76,10 @@ struct LocalMapperOptions {
   /// (most shared points first), >= 0.
   int inertial_fixed_covisible = 5;
   int inertial_iterations = 5;  ///< Iterations of the VI local BA, >= 1.
+  /// The VI window's anchor (the fixed keyframe before it) keeps its velocity free when it is less
+  /// than this before the window's first keyframe [s], >= 0 (0 = always held): a held one carries
+  /// an old estimate into every window of a dense keyframe chain (bundle_adjustment.h).
+  double inertial_free_anchor_velocity_below_s = 0.0;
 
   /// Iterations of the global BA after a loop correction, >= 0 (0 = none): every keyframe of
   /// the map optimised with its points, the map's first keyframe carrying the gauge (fixed pose;

@@ -20,6 +20,7 @@
 //       set: {dynamic.mode: semantic}                   # dotted keys written into the config
 //       args: [--loop-closing, off]                      # further `run` arguments
 //       deterministic: true
+//       runs: 1                                         # this config's runs (default: runs)
 //       sequences: [mh03]                               # only these (default: all)
 //     - name: peer                                      # an external system
 //       command: "my_slam {path} {out}/traj.txt"        # run by /bin/sh in the cell folder
@@ -64,6 +65,7 @@ struct ConfigSpec {
   std::map<std::string, std::string> set;  ///< Dotted option keys -> YAML scalar values.
   std::vector<std::string> args;           ///< Further `run` arguments.
   bool deterministic = true;
+  int runs = 0;                        ///< Runs of this config's cells; 0 = the spec's `runs`.
   std::string align;                   ///< "se3" / "sim3"; empty = by mode.
   std::vector<std::string> sequences;  ///< Only these sequences; empty = all.
   /// An external system: a shell command template. Placeholders: {path} {dataset} {mode}
