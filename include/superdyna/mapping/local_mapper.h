@@ -15,10 +15,10 @@
 // inertial_window_keyframes keyframes of the temporal chain are optimised (pose, velocity, biases)
 // with preintegration and bias random walk factors between consecutive ones; the keyframe before
 // them is fixed with its biases, and with its velocity unless it is less than
-// inertial_free_anchor_velocity_below_s before the window; up to
-// inertial_fixed_covisible keyframes outside the window that observe its points add their
-// observations with fixed poses. Then: removal of outlier observations, culling of recent map
-// points that too few keyframes observe, and culling of redundant keyframes (keyframe_culling.h).
+// inertial_free_anchor_velocity_below_s before the window; up to inertial_fixed_covisible
+// keyframes outside the window that observe its points add their observations with fixed poses.
+// Then: removal of outlier observations, culling of recent map points that too few keyframes
+// observe, and culling of redundant keyframes (keyframe_culling.h).
 
 #include <Eigen/Core>
 #include <map>
